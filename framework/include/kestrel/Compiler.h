@@ -1,0 +1,82 @@
+#pragma once
+// The graph compiler: validate -> instantiate -> resolve what the scene provides -> prune ->
+// order -> plan memory. Names ("pass.port") are resolved here, once, into integer handles.
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "kestrel/Graph.h"
+#include "kestrel/Pass.h"
+#include "kestrel/Registry.h"
+
+namespace kestrel {
+
+struct CompileOptions {
+    int64_t firstFrame = 0;  ///< handed to sources so they can probe the scene
+    /// Only validate: do not call resolve() (no files opened), skip scene adaptation.
+    bool validateOnly = false;
+};
+
+/// Why a pass is not executed.
+struct LeftOutPass {
+    std::string pass;
+    std::string reason;
+};
+
+struct CompileReport {
+    std::vector<std::string> notes;       ///< adaptation notes from resolve()
+    std::vector<LeftOutPass> pruned;      ///< contributes to no output
+    std::vector<LeftOutPass> elided;      ///< identity for this scene (outputs forwarded)
+    std::vector<std::string> absent;      ///< "pass.port: reason" outputs the scene lacks
+};
+
+/// A resource slot: one produced output, possibly sharing memory with others (aliasing).
+struct ResourceInfo {
+    std::string producer;  ///< "pass.port"
+    Format format = Format::Float;
+    bool history = false;  ///< double-buffered, read next frame
+    bool marked = false;   ///< a graph output, kept to the end of the frame
+    int firstUse = 0, lastUse = 0;  ///< execution-order indices
+    std::vector<int> planes;        ///< physical plane slots (transient) it occupies
+};
+
+class CompiledGraph;
+
+/// Throws GraphError with every problem found, or Error for a scene the graph cannot run on.
+std::unique_ptr<CompiledGraph> compileGraph(const GraphDesc& graph, const Registry& registry,
+                                            const CompileOptions& options = {});
+
+/// The compiled graph: live passes in execution order with their bindings and memory plan.
+/// Executed by an Executor.
+class CompiledGraph {
+public:
+    ~CompiledGraph();
+    const GraphDesc& desc() const;
+    const CompileReport& report() const;
+    /// Live pass names in execution order.
+    std::vector<std::string> executionOrder() const;
+    const std::vector<ResourceInfo>& resources() const;
+    /// Number of distinct transient planes the memory plan needs (after aliasing).
+    int transientPlaneCount() const;
+    /// Planes the resources would need without aliasing.
+    int unaliasedPlaneCount() const;
+    /// Graphviz DOT: live and pruned passes, history edges dashed, shared memory noted.
+    std::string toDot() const;
+    /// Compact JSON of the passes and their effective parameters (provenance).
+    std::string provenanceJson() const;
+    /// Live passes of a given type (e.g. sources, sinks), for the CLI.
+    std::vector<std::pair<std::string, Pass*>> passesOfType(const std::string& type) const;
+    std::vector<std::pair<std::string, Pass*>> sinks() const;
+    std::vector<std::pair<std::string, Pass*>> livePasses() const;
+
+    struct Impl;
+    Impl& impl() { return *impl_; }
+    const Impl& impl() const { return *impl_; }
+    explicit CompiledGraph(std::unique_ptr<Impl> impl);
+
+private:
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace kestrel

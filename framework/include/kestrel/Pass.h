@@ -1,0 +1,124 @@
+#pragma once
+// The pass API. A pass type is described by data (PassDesc: ports, formats, flags, parameters),
+// so a JSON graph is validated completely before any pass runs. Three phases, three objects:
+//   declare  - static PassDesc describe();               (what the type offers)
+//   compile  - void resolve(ResolveContext&);             (adapt to what the scene provides)
+//   execute  - void execute(FrameContext&, PassIO&);      (per frame; resources come from the graph)
+// A pass never allocates graph resources and keeps no temporal state in members: state that
+// must survive to the next frame flows through history edges.
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "kestrel/Error.h"
+#include "kestrel/Format.h"
+#include "kestrel/FrameContext.h"
+#include "kestrel/Image.h"
+#include "kestrel/Params.h"
+
+namespace kestrel {
+
+enum class PortKind { Input, Output };
+
+struct PortDesc {
+    std::string name;
+    PortKind kind = PortKind::Input;
+    Format format = Format::Float;
+    bool optional = false;  ///< input may stay unbound; the pass adapts
+    bool history = false;   ///< input must be fed by a history edge (previous frame's value)
+    std::string description;
+};
+
+/// What a pass type declares: its ports and parameters. Built with the chainable helpers.
+struct PassDesc {
+    std::string type;
+    std::string description;
+    std::vector<PortDesc> ports;
+    std::vector<ParamDesc> params;
+    bool sink = false;  ///< writes outside the graph (files): always live, never pruned
+
+    PassDesc(std::string type_, std::string description_)
+        : type(std::move(type_)), description(std::move(description_)) {}
+
+    PassDesc& input(std::string name, Format f, std::string desc);
+    PassDesc& optionalInput(std::string name, Format f, std::string desc);
+    /// Previous-frame value through a history edge; always optional (invalid on first frame).
+    PassDesc& historyInput(std::string name, Format f, std::string desc);
+    PassDesc& output(std::string name, Format f, std::string desc);
+
+    PassDesc& paramFloat(std::string name, double def, double min, double max, std::string desc);
+    PassDesc& paramInt(std::string name, int64_t def, int64_t min, int64_t max, std::string desc);
+    PassDesc& paramBool(std::string name, bool def, std::string desc);
+    PassDesc& paramString(std::string name, std::string def, std::string desc);
+    PassDesc& paramEnum(std::string name, std::string def, std::vector<std::string> choices,
+                        std::string desc);
+
+    const PortDesc* findPort(std::string_view name) const;
+    const ParamDesc* findParam(std::string_view name) const;
+};
+
+/// Compile-time view of one pass instance: which inputs the scene and graph can feed, and how
+/// the pass adapts. Unbound optional inputs are never read, allocated or computed.
+class ResolveContext {
+public:
+    virtual ~ResolveContext() = default;
+    /// Whether an input is connected to a producer that will exist.
+    virtual bool isBound(std::string_view input) const = 0;
+    /// Declare that `output` is exactly `input` (identity). Consumers are rewired to the
+    /// input's producer; when every used output is forwarded the pass is left out.
+    virtual void forward(std::string_view output, std::string_view input) = 0;
+    /// Declare that `output` will not be produced (e.g. the scene lacks the channel).
+    virtual void setAbsent(std::string_view output, std::string reason) = 0;
+    /// A line for the run log: what the pass adapted and why.
+    virtual void note(std::string message) = 0;
+    /// Sequence facts a source needs at compile time.
+    virtual int64_t firstFrame() const = 0;
+    virtual std::string_view passName() const = 0;
+};
+
+/// Run-level hook context (before frame 1).
+struct RunContext {
+    const RunInfo* run = nullptr;
+    int64_t firstFrame = 0;
+    int64_t lastFrame = 0;
+};
+
+/// Per-frame access to a pass's bound resources, by port name (a handful of ports: the linear
+/// name match costs nanoseconds per frame and is never done per pixel).
+class PassIO {
+public:
+    virtual ~PassIO() = default;
+    /// Bound and, for a history input, valid this frame.
+    virtual bool hasInput(std::string_view name) const = 0;
+    /// Throws Error if the input is unbound (or an invalid history).
+    virtual const ImageView& input(std::string_view name) const = 0;
+    /// For history inputs: connected and valid (false on the first frame and after a reset).
+    virtual bool historyValid(std::string_view name) const = 0;
+    /// Whether anyone consumes this output (unused outputs are not allocated).
+    virtual bool hasOutput(std::string_view name) const = 0;
+    virtual const ImageView& output(std::string_view name) = 0;
+};
+
+class Pass {
+public:
+    virtual ~Pass() = default;
+    /// Compile time: adapt to bound inputs (forward, mark outputs absent). Sources probe the
+    /// scene here. Throw Error for a configuration that cannot work.
+    virtual void resolve(ResolveContext&) {}
+    /// Once before the first frame of a run, for live passes (check output dirs, open files).
+    virtual void beginRun(const RunContext&) {}
+    /// Sources: report this frame's extent (and fill ctx.scene). Others return nullopt.
+    /// Throw FrameError for a missing or unreadable frame.
+    virtual std::optional<Extent> beginFrame(FrameContext&) { return std::nullopt; }
+    virtual void execute(FrameContext& ctx, PassIO& io) = 0;
+    /// Sources: frame numbers available when the user gives no range (empty: unknown).
+    virtual std::vector<int64_t> availableFrames() const { return {}; }
+    /// Sinks: whether this frame's output already exists (for --resume).
+    virtual bool frameWritten(int64_t /*frameNumber*/) const { return false; }
+    /// Sinks: called at the end of a run (close files, print summaries).
+    virtual void endRun() {}
+};
+
+}  // namespace kestrel

@@ -1,0 +1,75 @@
+#pragma once
+// Plugin modules. A plugin is a shared library exporting two C entry points:
+//   uint32_t kestrelPluginAbiVersion();            must return KESTREL_PLUGIN_ABI_VERSION
+//   void     kestrelRegisterPlugin(PluginRegistrar&);
+// Write them with the KESTREL_PLUGIN macro:
+//   KESTREL_PLUGIN(registrar) { registrar.add<MyPass>(); }
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "kestrel/Registry.h"
+
+#define KESTREL_PLUGIN_ABI_VERSION 1u
+
+namespace kestrel {
+
+/// Handed to a plugin's entry point; registers its types on behalf of that module.
+class PluginRegistrar {
+public:
+    PluginRegistrar(Registry& registry, std::string module)
+        : registry_(registry), module_(std::move(module)) {}
+    template <class T>
+    void add() {
+        registry_.add<T>(module_);
+    }
+    void add(PassDesc desc, PassFactory factory) {
+        registry_.add(std::move(desc), std::move(factory), module_);
+    }
+
+private:
+    Registry& registry_;
+    std::string module_;
+};
+
+/// Loads plugin modules and keeps them loaded for as long as it lives. Declare it before (so
+/// it outlives) every pass instance created from its types.
+class PluginLoader {
+public:
+    PluginLoader() = default;
+    ~PluginLoader();
+    PluginLoader(const PluginLoader&) = delete;
+    PluginLoader& operator=(const PluginLoader&) = delete;
+
+    /// Loads one module into `registry`. Throws Error naming the file for: not loadable,
+    /// missing entry point, ABI mismatch, duplicate type name.
+    void load(const std::filesystem::path& module, Registry& registry);
+    /// Loads every module (*.so) in each directory, in sorted order. Missing dirs are skipped.
+    void loadDirectories(const std::vector<std::filesystem::path>& dirs, Registry& registry);
+
+    const std::vector<std::string>& loaded() const { return names_; }
+
+private:
+    std::vector<void*> handles_;
+    std::vector<std::string> names_;
+};
+
+/// The install's plugin directory followed by those in KESTREL_PLUGIN_PATH (':'-separated).
+std::vector<std::filesystem::path> defaultPluginDirectories();
+
+}  // namespace kestrel
+
+#if defined(_WIN32)
+#define KESTREL_EXPORT __declspec(dllexport)
+#else
+#define KESTREL_EXPORT __attribute__((visibility("default")))
+#endif
+
+#define KESTREL_PLUGIN(registrarName)                                                   \
+    extern "C" KESTREL_EXPORT uint32_t kestrelPluginAbiVersion() {                      \
+        return KESTREL_PLUGIN_ABI_VERSION;                                              \
+    }                                                                                   \
+    extern "C" KESTREL_EXPORT void kestrelRegisterPlugin(::kestrel::PluginRegistrar&);  \
+    extern "C" KESTREL_EXPORT void kestrelRegisterPlugin(::kestrel::PluginRegistrar& registrarName)
