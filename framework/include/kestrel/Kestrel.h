@@ -1,5 +1,6 @@
 #pragma once
 // Everything a pass plugin needs.
+#include "kestrel/Conventions.h"
 #include "kestrel/Error.h"
 #include "kestrel/Format.h"
 #include "kestrel/FrameContext.h"
