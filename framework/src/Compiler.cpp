@@ -1,0 +1,616 @@
+// The graph compiler: validate -> instantiate -> resolve -> prune -> order -> plan memory.
+#include "kestrel/Compiler.h"
+
+#include <algorithm>
+#include <functional>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <set>
+#include <sstream>
+
+#include "CompilerImpl.h"
+#include "ParamCheck.h"
+
+namespace kestrel {
+
+using nlohmann::json;
+
+namespace {
+
+struct PortRef {
+    int node = -1, port = -1;
+    bool operator==(const PortRef&) const = default;
+};
+
+std::string portList(const PassDesc& d, PortKind kind) {
+    std::string s;
+    for (const auto& p : d.ports)
+        if (p.kind == kind) s += (s.empty() ? "" : ", ") + p.name;
+    return s.empty() ? "none" : s;
+}
+
+int portIndex(const PassDesc& d, std::string_view name, PortKind kind) {
+    for (size_t i = 0; i < d.ports.size(); ++i)
+        if (d.ports[i].name == name && d.ports[i].kind == kind) return int(i);
+    return -1;
+}
+
+class Compiler {
+public:
+    Compiler(const GraphDesc& desc, const Registry& registry, const CompileOptions& options)
+        : registry_(registry), options_(options), g_(std::make_unique<CompiledGraph::Impl>()) {
+        g_->desc = desc;
+    }
+
+    std::unique_ptr<CompiledGraph::Impl> run() {
+        instantiate();
+        bindEdges();
+        checkOutputs();
+        if (diags_.empty()) order();
+        if (diags_.empty()) construct();
+        if (!diags_.empty()) throw GraphError(std::move(diags_));
+        if (options_.validateOnly) return std::move(g_);
+        resolve();
+        markLive();
+        planResources();
+        return std::move(g_);
+    }
+
+private:
+    NodeState& node(int i) { return g_->nodes[size_t(i)]; }
+    const PassDesc& descOf(int i) { return node(i).type->desc; }
+    const EdgeDesc& edge(int e) { return g_->desc.edges[size_t(e)]; }
+    std::string portName(PortRef r) {
+        return node(r.node).name + "." + descOf(r.node).ports[size_t(r.port)].name;
+    }
+
+    void instantiate() {
+        const auto& passes = g_->desc.passes;
+        for (size_t i = 0; i < passes.size(); ++i) {
+            NodeState n;
+            n.name = passes[i].name;
+            n.jsonIndex = int(i);
+            std::string path = "passes[" + std::to_string(i) + "]";
+            n.type = registry_.find(passes[i].type);
+            if (!n.type) {
+                std::string msg = "unknown pass type '" + passes[i].type + "'";
+                std::string near = registry_.nearest(passes[i].type);
+                if (!near.empty()) msg += " (did you mean '" + near + "'?)";
+                else msg += " (see `kestrel passes` for the registered types)";
+                diags_.push_back({path + ".type", msg});
+            } else {
+                n.params = detail::checkParams(n.type->desc, json::parse(passes[i].paramsJson), path,
+                                               diags_);
+                size_t ports = n.type->desc.ports.size();
+                n.inEdge.assign(ports, -1);
+                n.outAbsent.assign(ports, false);
+                n.absentReason.assign(ports, {});
+                n.forward.assign(ports, -1);
+                n.portResource.assign(ports, -1);
+                n.portHistory.assign(ports, false);
+            }
+            byName_[n.name] = int(i);
+            g_->nodes.push_back(std::move(n));
+        }
+    }
+
+    int findNode(const std::string& name, const std::string& path, const std::string& key) {
+        auto it = byName_.find(name);
+        if (it != byName_.end()) return it->second;
+        std::vector<std::string> names;
+        for (const auto& n : g_->nodes) names.push_back(n.name);
+        std::string msg = "unknown pass '" + name + "'";
+        std::string near = detail::nearestName(name, names);
+        if (!near.empty()) msg += " (did you mean '" + near + "'?)";
+        diags_.push_back({path + "." + key, msg});
+        return -1;
+    }
+
+    void bindEdges() {
+        const auto& edges = g_->desc.edges;
+        for (size_t ei = 0; ei < edges.size(); ++ei) {
+            const auto& e = edges[ei];
+            std::string path = "edges[" + std::to_string(ei) + "]";
+            int s = findNode(e.fromPass, path, "from");
+            int d = findNode(e.toPass, path, "to");
+            int sp = -1, dp = -1;
+            if (s >= 0 && node(s).type) {
+                sp = portIndex(descOf(s), e.fromPort, PortKind::Output);
+                if (sp < 0)
+                    diags_.push_back({path + ".from", "pass '" + e.fromPass + "' (" +
+                                                          descOf(s).type + ") has no output '" +
+                                                          e.fromPort + "' (outputs: " +
+                                                          portList(descOf(s), PortKind::Output) + ")"});
+            }
+            if (d >= 0 && node(d).type) {
+                dp = portIndex(descOf(d), e.toPort, PortKind::Input);
+                if (dp < 0)
+                    diags_.push_back({path + ".to", "pass '" + e.toPass + "' (" + descOf(d).type +
+                                                        ") has no input '" + e.toPort +
+                                                        "' (inputs: " +
+                                                        portList(descOf(d), PortKind::Input) + ")"});
+            }
+            if (sp < 0 || dp < 0) continue;
+            const PortDesc& out = descOf(s).ports[size_t(sp)];
+            const PortDesc& in = descOf(d).ports[size_t(dp)];
+            if (out.format != Format::Any && !formatAccepts(in.format, out.format))
+                diags_.push_back({path, "format mismatch: " + e.fromPass + "." + e.fromPort +
+                                            " is " + std::string(formatName(out.format)) +
+                                            " but " + e.toPass + "." + e.toPort + " expects " +
+                                            std::string(formatName(in.format))});
+            if (e.history && !in.history)
+                diags_.push_back({path + ".history", e.toPass + "." + e.toPort +
+                                                         " is not a history input; remove "
+                                                         "\"history\": true"});
+            if (!e.history && in.history)
+                diags_.push_back({path, e.toPass + "." + e.toPort +
+                                            " is a history input (previous frame): mark the edge "
+                                            "\"history\": true"});
+            int& slot = node(d).inEdge[size_t(dp)];
+            if (slot >= 0) {
+                diags_.push_back({path + ".to", "input " + e.toPass + "." + e.toPort +
+                                                    " is already fed by edges[" +
+                                                    std::to_string(slot) + "]"});
+                continue;
+            }
+            slot = int(ei);
+        }
+        for (size_t i = 0; i < g_->nodes.size(); ++i) {
+            auto& n = g_->nodes[i];
+            if (!n.type) continue;
+            const auto& ports = n.type->desc.ports;
+            for (size_t p = 0; p < ports.size(); ++p)
+                if (ports[p].kind == PortKind::Input && !ports[p].optional && n.inEdge[p] < 0)
+                    diags_.push_back({"passes[" + std::to_string(i) + "]",
+                                      "required input '" + ports[p].name + "' of pass '" + n.name +
+                                          "' (" + n.type->desc.type + ") is not connected"});
+        }
+    }
+
+    void checkOutputs() {
+        for (size_t i = 0; i < g_->desc.outputs.size(); ++i) {
+            const std::string& o = g_->desc.outputs[i];
+            std::string path = "outputs[" + std::to_string(i) + "]";
+            auto dot = o.find('.');
+            std::string pass = o.substr(0, dot);
+            int n = findNode(pass, "outputs", "[" + std::to_string(i) + "]");
+            if (n < 0 || !node(n).type) continue;
+            if (dot == std::string::npos) {
+                rootNodes_.push_back(n);
+                continue;
+            }
+            std::string port = o.substr(dot + 1);
+            int p = portIndex(descOf(n), port, PortKind::Output);
+            if (p < 0) {
+                diags_.push_back({path, "pass '" + pass + "' has no output '" + port +
+                                            "' (outputs: " + portList(descOf(n), PortKind::Output) +
+                                            ")"});
+                continue;
+            }
+            g_->marked.push_back({n, p});
+            g_->markedNames.push_back(o);
+        }
+    }
+
+    /// Topological order over same-frame edges; smallest JSON index first among ready passes,
+    /// so the order is deterministic and follows the file where the graph allows.
+    void order() {
+        size_t n = g_->nodes.size();
+        std::vector<std::vector<int>> succ(n), pred(n);
+        std::vector<int> indeg(n, 0);
+        for (size_t i = 0; i < n; ++i)
+            for (int e : g_->nodes[i].inEdge) {
+                if (e < 0 || edge(e).history) continue;
+                int s = byName_[edge(e).fromPass];
+                succ[size_t(s)].push_back(int(i));
+                pred[i].push_back(s);
+                ++indeg[i];
+            }
+        std::set<int> ready;
+        for (size_t i = 0; i < n; ++i)
+            if (indeg[i] == 0) ready.insert(int(i));
+        while (!ready.empty()) {
+            int v = *ready.begin();
+            ready.erase(ready.begin());
+            g_->topo.push_back(v);
+            for (int w : succ[size_t(v)])
+                if (--indeg[size_t(w)] == 0) ready.insert(w);
+        }
+        if (g_->topo.size() == n) return;
+        // Name one cycle: walk predecessors among the unsorted passes until one repeats.
+        std::vector<bool> sorted(n, false);
+        for (int v : g_->topo) sorted[size_t(v)] = true;
+        int start = 0;
+        while (sorted[size_t(start)]) ++start;
+        std::vector<int> path;
+        std::map<int, size_t> seen;
+        int v = start;
+        while (!seen.count(v)) {
+            seen[v] = path.size();
+            path.push_back(v);
+            for (int p : pred[size_t(v)])
+                if (!sorted[size_t(p)]) {
+                    v = p;
+                    break;
+                }
+        }
+        std::vector<int> cycle(path.begin() + long(seen[v]), path.end());
+        std::reverse(cycle.begin(), cycle.end());
+        std::string s;
+        for (int c : cycle) s += node(c).name + " -> ";
+        s += node(cycle.front()).name;
+        diags_.push_back({"edges", "cycle without a history edge: " + s +
+                                       " (mark the edge that carries last frame's value "
+                                       "\"history\": true)"});
+    }
+
+    void construct() {
+        for (auto& n : g_->nodes) {
+            try {
+                n.pass = n.type->create(n.params);
+            } catch (const std::exception& e) {
+                diags_.push_back({"passes[" + std::to_string(n.jsonIndex) + "]",
+                                  "pass '" + n.name + "' (" + n.type->desc.type + "): " + e.what()});
+            }
+        }
+    }
+
+    /// The output that really produces what `input` of node `n` reads: follows forwards.
+    /// nullopt when unconnected or absent (reason in `why`).
+    std::optional<PortRef> sourceOf(int n, int input, std::string* why = nullptr,
+                                    std::vector<int>* via = nullptr) {
+        int e = node(n).inEdge[size_t(input)];
+        for (int hops = 0; hops < 1000; ++hops) {
+            if (e < 0) return std::nullopt;
+            PortRef r{byName_[edge(e).fromPass], -1};
+            r.port = portIndex(descOf(r.node), edge(e).fromPort, PortKind::Output);
+            NodeState& s = node(r.node);
+            if (s.outAbsent[size_t(r.port)]) {
+                if (why) *why = s.absentReason[size_t(r.port)];
+                return std::nullopt;
+            }
+            int f = s.forward[size_t(r.port)];
+            if (f < 0) return r;
+            if (via) via->push_back(r.node);
+            e = s.inEdge[size_t(f)];
+        }
+        throw Error("forwarding loop at pass '" + node(n).name + "'");
+    }
+
+    class Resolver final : public ResolveContext {
+    public:
+        Resolver(Compiler& c, int n) : c_(c), n_(n) {}
+        bool isBound(std::string_view input) const override {
+            int p = port(input, PortKind::Input);
+            auto& nd = c_.node(n_);
+            if (nd.inEdge[size_t(p)] < 0) return false;
+            if (c_.edge(nd.inEdge[size_t(p)]).history) return true;  // settled after resolve
+            return c_.sourceOf(n_, p).has_value();
+        }
+        void forward(std::string_view output, std::string_view input) override {
+            int o = port(output, PortKind::Output), i = port(input, PortKind::Input);
+            if (!isBound(input))
+                throw Error("pass '" + c_.node(n_).name + "' forwards '" + std::string(output) +
+                            "' to unbound input '" + std::string(input) + "'");
+            c_.node(n_).forward[size_t(o)] = i;
+        }
+        void setAbsent(std::string_view output, std::string reason) override {
+            int o = port(output, PortKind::Output);
+            c_.node(n_).outAbsent[size_t(o)] = true;
+            c_.node(n_).absentReason[size_t(o)] = std::move(reason);
+        }
+        void note(std::string message) override {
+            c_.node(n_).notes.push_back(message);
+            c_.g_->report.notes.push_back(c_.node(n_).name + ": " + message);
+        }
+        int64_t firstFrame() const override { return c_.options_.firstFrame; }
+        std::string_view passName() const override { return c_.node(n_).name; }
+
+    private:
+        int port(std::string_view name, PortKind kind) const {
+            int p = portIndex(c_.descOf(n_), name, kind);
+            if (p < 0)
+                throw Error("pass '" + c_.node(n_).name + "' (" + c_.descOf(n_).type + ") has no " +
+                            (kind == PortKind::Input ? "input" : "output") + " '" +
+                            std::string(name) + "'");
+            return p;
+        }
+        Compiler& c_;
+        int n_;
+    };
+
+    void resolve() {
+        for (int v : g_->topo) {
+            NodeState& n = node(v);
+            const auto& ports = descOf(v).ports;
+            for (size_t p = 0; p < ports.size(); ++p) {
+                if (ports[p].kind != PortKind::Input || ports[p].optional || n.inEdge[p] < 0)
+                    continue;
+                std::string why;
+                if (!sourceOf(v, int(p), &why)) {
+                    n.absent = true;
+                    n.absentWhy = "input '" + ports[p].name + "' has no data (" + why + ")";
+                    break;
+                }
+            }
+            if (n.absent) {
+                for (size_t p = 0; p < ports.size(); ++p)
+                    if (ports[p].kind == PortKind::Output) {
+                        n.outAbsent[p] = true;
+                        n.absentReason[p] = "pass '" + n.name + "' is left out: " + n.absentWhy;
+                    }
+                continue;
+            }
+            Resolver rc(*this, v);
+            try {
+                n.pass->resolve(rc);
+            } catch (const GraphError&) {
+                throw;
+            } catch (const std::exception& e) {
+                throw Error("pass '" + n.name + "' (" + descOf(v).type + "): " + e.what());
+            }
+            for (size_t p = 0; p < ports.size(); ++p)
+                if (n.outAbsent[p])
+                    g_->report.absent.push_back(n.name + "." + ports[p].name + ": " +
+                                                n.absentReason[p]);
+        }
+    }
+
+    void markLive() {
+        std::function<void(int)> live = [&](int v) {
+            NodeState& n = node(v);
+            if (n.executed) return;
+            n.executed = n.live = true;
+            const auto& ports = descOf(v).ports;
+            for (size_t p = 0; p < ports.size(); ++p) {
+                if (ports[p].kind != PortKind::Input) continue;
+                std::vector<int> via;
+                if (auto src = sourceOf(v, int(p), nullptr, &via)) {
+                    for (int f : via) node(f).live = true;
+                    live(src->node);
+                }
+            }
+        };
+        auto rootFail = [&](const std::string& what, const std::string& why) {
+            throw Error(what + " cannot be produced for this scene: " + why);
+        };
+        for (size_t v = 0; v < g_->nodes.size(); ++v)
+            if (descOf(int(v)).sink) {
+                if (node(int(v)).absent) rootFail("output pass '" + node(int(v)).name + "'", node(int(v)).absentWhy);
+                live(int(v));
+            }
+        for (int v : rootNodes_) {
+            if (node(v).absent) rootFail("output pass '" + node(v).name + "'", node(v).absentWhy);
+            live(v);
+        }
+        for (size_t m = 0; m < g_->marked.size(); ++m) {
+            auto [v, p] = g_->marked[m];
+            NodeState& n = node(v);
+            if (n.outAbsent[size_t(p)]) rootFail("output " + g_->markedNames[m], n.absentReason[size_t(p)]);
+            int f = n.forward[size_t(p)];
+            if (f < 0) {
+                live(v);
+                continue;
+            }
+            n.live = true;
+            std::vector<int> via;
+            if (auto src = sourceOf(v, f, nullptr, &via)) {
+                for (int x : via) node(x).live = true;
+                g_->marked[m] = {src->node, src->port};
+                live(src->node);
+            }
+        }
+        for (int v : g_->topo) {
+            NodeState& n = node(v);
+            if (n.executed) {
+                g_->order.push_back(v);
+                continue;
+            }
+            if (n.absent) {
+                g_->report.pruned.push_back({n.name, n.absentWhy});
+            } else if (n.live) {
+                std::string why = "identity for this scene (outputs forwarded)";
+                if (!n.notes.empty()) why = n.notes.back();
+                g_->report.elided.push_back({n.name, why});
+            } else {
+                g_->report.pruned.push_back({n.name, "contributes to no output"});
+            }
+        }
+    }
+
+    void planResources() {
+        std::vector<int> execIndex(g_->nodes.size(), -1);
+        for (size_t k = 0; k < g_->order.size(); ++k) execIndex[size_t(g_->order[k])] = int(k);
+        const int end = int(g_->order.size());
+        std::map<std::pair<int, int>, int> resourceOf;  // (node, output port) -> resource
+        auto getResource = [&](PortRef src) {
+            auto key = std::make_pair(src.node, src.port);
+            auto it = resourceOf.find(key);
+            if (it != resourceOf.end()) return it->second;
+            const PortDesc& pd = descOf(src.node).ports[size_t(src.port)];
+            if (pd.format == Format::Any)
+                throw Error("pass '" + node(src.node).name + "' output '" + pd.name +
+                            "' has format any and must be forwarded");
+            ResourceInfo r;
+            r.producer = portName(src);
+            r.format = pd.format;
+            r.firstUse = r.lastUse = execIndex[size_t(src.node)];
+            int id = int(g_->resources.size());
+            g_->resources.push_back(r);
+            resourceOf[key] = id;
+            node(src.node).portResource[size_t(src.port)] = id;
+            return id;
+        };
+        for (int v : g_->order) {
+            const auto& ports = descOf(v).ports;
+            for (size_t p = 0; p < ports.size(); ++p) {
+                if (ports[p].kind != PortKind::Input) continue;
+                auto src = sourceOf(v, int(p));
+                if (!src || execIndex[size_t(src->node)] < 0) continue;
+                int r = getResource(*src);
+                bool hist = edge(node(v).inEdge[p]).history;
+                node(v).portResource[p] = r;
+                node(v).portHistory[p] = hist;
+                auto& res = g_->resources[size_t(r)];
+                if (hist) res.history = true;
+                else res.lastUse = std::max(res.lastUse, execIndex[size_t(v)]);
+            }
+        }
+        g_->markedResource.clear();
+        for (auto [v, p] : g_->marked) {
+            int r = getResource({v, p});
+            g_->resources[size_t(r)].marked = true;
+            g_->resources[size_t(r)].lastUse = end;
+            g_->markedResource.push_back(r);
+        }
+        // Lifetime-based aliasing: walk the execution order, give each transient output the
+        // lowest free planes before its pass runs, and free a resource's planes once its last
+        // reader has run. Outputs are taken before inputs are freed, so a pass never writes
+        // into memory it reads. History resources persist across frames and are never aliased.
+        std::set<int> freePlanes;
+        int nextPlane = 0;
+        for (int k = 0; k < end; ++k) {
+            for (size_t r = 0; r < g_->resources.size(); ++r) {
+                auto& res = g_->resources[r];
+                if (res.history || res.firstUse != k) continue;
+                int need = channelCount(res.format);
+                g_->unaliasedPlanes += need;
+                for (int c = 0; c < need; ++c) {
+                    if (!freePlanes.empty()) {
+                        res.planes.push_back(*freePlanes.begin());
+                        freePlanes.erase(freePlanes.begin());
+                    } else {
+                        res.planes.push_back(nextPlane++);
+                    }
+                }
+            }
+            for (auto& res : g_->resources)
+                if (!res.history && res.lastUse == k)
+                    for (int pl : res.planes) freePlanes.insert(pl);
+        }
+        g_->transientPlanes = nextPlane;
+    }
+
+    const Registry& registry_;
+    CompileOptions options_;
+    std::unique_ptr<CompiledGraph::Impl> g_;
+    std::vector<Diagnostic> diags_;
+    std::map<std::string, int> byName_;
+    std::vector<int> rootNodes_;
+};
+
+}  // namespace
+
+std::unique_ptr<CompiledGraph> compileGraph(const GraphDesc& graph, const Registry& registry,
+                                            const CompileOptions& options) {
+    Compiler c(graph, registry, options);
+    return std::make_unique<CompiledGraph>(c.run());
+}
+
+CompiledGraph::CompiledGraph(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+CompiledGraph::~CompiledGraph() = default;
+const GraphDesc& CompiledGraph::desc() const { return impl_->desc; }
+const CompileReport& CompiledGraph::report() const { return impl_->report; }
+const std::vector<ResourceInfo>& CompiledGraph::resources() const { return impl_->resources; }
+int CompiledGraph::transientPlaneCount() const { return impl_->transientPlanes; }
+int CompiledGraph::unaliasedPlaneCount() const { return impl_->unaliasedPlanes; }
+
+std::vector<std::string> CompiledGraph::executionOrder() const {
+    std::vector<std::string> r;
+    for (int v : impl_->order) r.push_back(impl_->nodes[size_t(v)].name);
+    return r;
+}
+
+std::vector<std::pair<std::string, Pass*>> CompiledGraph::livePasses() const {
+    std::vector<std::pair<std::string, Pass*>> r;
+    for (int v : impl_->order)
+        r.emplace_back(impl_->nodes[size_t(v)].name, impl_->nodes[size_t(v)].pass.get());
+    return r;
+}
+
+std::vector<std::pair<std::string, Pass*>> CompiledGraph::passesOfType(const std::string& type) const {
+    std::vector<std::pair<std::string, Pass*>> r;
+    for (const auto& n : impl_->nodes)
+        if (n.type && n.type->desc.type == type && n.pass) r.emplace_back(n.name, n.pass.get());
+    return r;
+}
+
+std::vector<std::pair<std::string, Pass*>> CompiledGraph::sinks() const {
+    std::vector<std::pair<std::string, Pass*>> r;
+    for (int v : impl_->order)
+        if (impl_->nodes[size_t(v)].type->desc.sink)
+            r.emplace_back(impl_->nodes[size_t(v)].name, impl_->nodes[size_t(v)].pass.get());
+    return r;
+}
+
+std::string CompiledGraph::provenanceJson() const {
+    json passes = json::array();
+    for (int v : impl_->order) {
+        const auto& n = impl_->nodes[size_t(v)];
+        json params = json::object();
+        for (const auto& [k, val] : n.params.all()) params[k] = detail::paramValueToJson(val);
+        passes.push_back({{"name", n.name}, {"type", n.type->desc.type}, {"params", params}});
+    }
+    return json{{"graph", impl_->desc.name}, {"passes", passes}}.dump();
+}
+
+namespace {
+std::string dotEscape(const std::string& s) {
+    std::string r;
+    for (char c : s) {
+        if (c == '"' || c == '\\') r += '\\';
+        r += c;
+    }
+    return r;
+}
+}  // namespace
+
+std::string CompiledGraph::toDot() const {
+    const Impl& g = *impl_;
+    std::ostringstream o;
+    o << "digraph \"" << dotEscape(g.desc.name) << "\" {\n  rankdir=LR;\n"
+      << "  node [shape=box, style=rounded, fontname=\"Helvetica\"];\n";
+    std::map<std::string, std::string> leftOut;
+    for (const auto& p : g.report.pruned) leftOut[p.pass] = "pruned: " + p.reason;
+    for (const auto& p : g.report.elided) leftOut[p.pass] = "left out: " + p.reason;
+    for (const auto& n : g.nodes) {
+        std::string type = n.type ? n.type->desc.type : "?";
+        o << "  \"" << dotEscape(n.name) << "\" [label=\"" << dotEscape(n.name) << "\\n(" << type << ")";
+        auto it = leftOut.find(n.name);
+        if (it != leftOut.end())
+            o << "\\n" << dotEscape(it->second) << "\", style=\"rounded,dashed\", color=gray50, fontcolor=gray50];\n";
+        else
+            o << "\", style=\"rounded,filled\", fillcolor=\"#dde8f5\"];\n";
+    }
+    for (const auto& e : g.desc.edges) {
+        std::string label = dotEscape(e.fromPort + " -> " + e.toPort);
+        // Which memory the edge's resource lives in: planes shared by several resources alias.
+        auto srcIt = std::find_if(g.nodes.begin(), g.nodes.end(), [&](const NodeState& n) { return n.name == e.fromPass; });
+        if (srcIt != g.nodes.end() && srcIt->type) {
+            int p = -1;
+            const auto& ports = srcIt->type->desc.ports;
+            for (size_t i = 0; i < ports.size(); ++i)
+                if (ports[i].name == e.fromPort && ports[i].kind == PortKind::Output) p = int(i);
+            if (p >= 0 && srcIt->portResource.size() > size_t(p) && srcIt->portResource[size_t(p)] >= 0) {
+                const auto& r = g.resources[size_t(srcIt->portResource[size_t(p)])];
+                if (r.history) label += "\\n[history, 2 buffers]";
+                else if (!r.planes.empty()) {
+                    label += "\\n[mem planes";
+                    for (int pl : r.planes) label += " " + std::to_string(pl);
+                    label += "]";
+                }
+            }
+        }
+        o << "  \"" << dotEscape(e.fromPass) << "\" -> \"" << dotEscape(e.toPass) << "\" [label=\""
+          << label << "\"";
+        if (e.history) o << ", style=dashed, color=\"#c0392b\", fontcolor=\"#c0392b\", constraint=false";
+        o << "];\n";
+    }
+    o << "  label=\"" << dotEscape(g.desc.name) << ": " << g.order.size() << " live passes, "
+      << g.transientPlanes << " transient planes for " << g.unaliasedPlanes
+      << " without aliasing; dashed red edges carry last frame's value\";\n}\n";
+    return o.str();
+}
+
+}  // namespace kestrel

@@ -1,0 +1,271 @@
+#include "kestrel/Executor.h"
+
+#include <chrono>
+
+#include "CompilerImpl.h"
+#include "kestrel/Log.h"
+
+namespace kestrel {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+/// Per-pass binding of ports to images, rebuilt when resources are (re)allocated.
+class NodeIO final : public PassIO {
+public:
+    struct Slot {
+        const PortDesc* port = nullptr;
+        ImageView view;
+        bool bound = false;
+        bool valid = false;
+    };
+    std::vector<Slot> slots;
+    std::string passName;
+
+    const Slot* find(std::string_view name, PortKind kind) const {
+        for (const auto& s : slots)
+            if (s.port->kind == kind && s.port->name == name) return &s;
+        return nullptr;
+    }
+    bool hasInput(std::string_view name) const override {
+        const Slot* s = find(name, PortKind::Input);
+        return s && s->bound && s->valid;
+    }
+    const ImageView& input(std::string_view name) const override {
+        const Slot* s = find(name, PortKind::Input);
+        if (!s) throw Error("pass '" + passName + "' has no input '" + std::string(name) + "'");
+        if (!s->bound || !s->valid)
+            throw Error("pass '" + passName + "' read input '" + std::string(name) +
+                        "', which is not bound this frame (check hasInput first)");
+        return s->view;
+    }
+    bool historyValid(std::string_view name) const override {
+        const Slot* s = find(name, PortKind::Input);
+        return s && s->port->history && s->bound && s->valid;
+    }
+    bool hasOutput(std::string_view name) const override {
+        const Slot* s = find(name, PortKind::Output);
+        return s && s->bound;
+    }
+    const ImageView& output(std::string_view name) override {
+        const Slot* s = find(name, PortKind::Output);
+        if (!s) throw Error("pass '" + passName + "' has no output '" + std::string(name) + "'");
+        if (!s->bound)
+            throw Error("pass '" + passName + "' wrote output '" + std::string(name) +
+                        "', which nothing consumes (check hasOutput first)");
+        return s->view;
+    }
+};
+
+}  // namespace
+
+struct Executor::Impl {
+    CompiledGraph& graph;
+    CompiledGraph::Impl& g;
+    Parallel& parallel;
+    RunInfo run;
+    Extent defaultExtent;
+    Extent extent{};
+    std::vector<PlaneStorage> transient;            // physical planes shared by transient resources
+    std::vector<std::array<PlaneStorage, 4>> hist[2];  // history resources: two buffers each
+    int current = 0;                                 // which history buffer is written this frame
+    bool historyValid = false;
+    std::vector<NodeIO> io;                          // per executed pass
+    std::vector<PassTime> times;
+    double frameMs = 0;
+    SceneData scene[2];
+    int sceneCur = 0;
+    bool hasPrevScene = false;
+    MemoryStats memory;
+    int64_t frames = 0;
+
+    Impl(CompiledGraph& cg, Parallel& p, RunInfo r, Extent e)
+        : graph(cg), g(cg.impl()), parallel(p), run(std::move(r)), defaultExtent(e) {
+        if (run.provenance.empty()) run.provenance = graph.provenanceJson();
+        if (run.graphName.empty()) run.graphName = g.desc.name;
+        io.resize(g.order.size());
+        for (size_t k = 0; k < g.order.size(); ++k) {
+            const NodeState& n = g.nodes[size_t(g.order[k])];
+            io[k].passName = n.name;
+            for (const auto& port : n.type->desc.ports) io[k].slots.push_back({&port, {}, false, false});
+        }
+    }
+
+    ImageView viewOf(int r, bool previous) {
+        const ResourceInfo& res = g.resources[size_t(r)];
+        ImageView v;
+        v.extent = extent;
+        v.format = res.format;
+        for (int c = 0; c < channelCount(res.format); ++c) {
+            if (res.history) {
+                int buf = previous ? 1 - current : current;
+                v.planes[size_t(c)] = hist[buf][size_t(r)][size_t(c)].get();
+            } else {
+                v.planes[size_t(c)] = transient[size_t(res.planes[size_t(c)])].get();
+            }
+        }
+        return v;
+    }
+
+    void allocate(Extent e) {
+        extent = e;
+        size_t px = e.pixels();
+        transient.clear();
+        for (int i = 0; i < g.transientPlanes; ++i) transient.push_back(allocatePlane(px));
+        size_t histPlanes = 0;
+        for (int b = 0; b < 2; ++b) {
+            hist[b].clear();
+            hist[b].resize(g.resources.size());
+            for (size_t r = 0; r < g.resources.size(); ++r) {
+                if (!g.resources[r].history) continue;
+                for (int c = 0; c < channelCount(g.resources[r].format); ++c) {
+                    hist[b][r][size_t(c)] = allocatePlane(px);
+                    ++histPlanes;
+                }
+            }
+        }
+        memory.transientPlanes = size_t(g.transientPlanes);
+        memory.historyPlanes = histPlanes;
+        memory.markedPlanes = 0;
+        for (int r : g.markedResource)
+            memory.markedPlanes += size_t(channelCount(g.resources[size_t(r)].format));
+        memory.bytes = (memory.transientPlanes + memory.historyPlanes) * px * sizeof(float);
+        memory.peakBytes = std::max(memory.peakBytes, memory.bytes);
+        historyValid = false;
+    }
+
+    /// Points every port at this frame's buffers (history buffers alternate per frame).
+    void bind() {
+        for (size_t k = 0; k < g.order.size(); ++k) {
+            const NodeState& n = g.nodes[size_t(g.order[k])];
+            for (size_t p = 0; p < io[k].slots.size(); ++p) {
+                auto& slot = io[k].slots[p];
+                int r = n.portResource[p];
+                slot.bound = r >= 0;
+                if (!slot.bound) continue;
+                bool prev = slot.port->kind == PortKind::Input && n.portHistory[p];
+                slot.view = viewOf(r, prev);
+                slot.valid = !prev || historyValid;
+            }
+        }
+    }
+};
+
+Executor::Executor(CompiledGraph& graph, Parallel& parallel, RunInfo run, Extent defaultExtent)
+    : impl_(std::make_unique<Impl>(graph, parallel, std::move(run), defaultExtent)) {}
+Executor::~Executor() = default;
+
+void Executor::beginRun(int64_t firstFrame, int64_t lastFrame) {
+    RunContext rc{&impl_->run, firstFrame, lastFrame};
+    for (int v : impl_->g.order) {
+        auto& n = impl_->g.nodes[size_t(v)];
+        try {
+            n.pass->beginRun(rc);
+        } catch (const std::exception& e) {
+            throw Error("pass '" + n.name + "': " + e.what());
+        }
+    }
+}
+
+void Executor::runFrame(int64_t frameNumber, bool writeOutputs) {
+    Impl& m = *impl_;
+    SceneData& scene = m.scene[m.sceneCur];
+    scene = SceneData{};
+    SceneData& prevScene = m.scene[1 - m.sceneCur];
+    if (!m.hasPrevScene) prevScene = SceneData{};
+
+    FrameContext ctx;
+    ctx.frameNumber = frameNumber;
+    ctx.frameIndex = m.frames;
+    ctx.writeOutputs = writeOutputs;
+    ctx.scene = &scene;
+    ctx.previousScene = &prevScene;
+    ctx.parallel = &m.parallel;
+    ctx.run = &m.run;
+
+    auto fail = [&](const NodeState& n, const std::exception& e) {
+        // A failed frame leaves history unusable: the next frame starts fresh.
+        m.historyValid = false;
+        m.hasPrevScene = false;
+        std::string msg = "frame " + std::to_string(frameNumber) + ", pass '" + n.name + "' (" +
+                          n.type->desc.type + "): " + e.what();
+        if (dynamic_cast<const FrameError*>(&e)) throw FrameError(msg);
+        throw Error(msg);
+    };
+
+    std::optional<Extent> extent;
+    for (int v : m.g.order) {
+        auto& n = m.g.nodes[size_t(v)];
+        try {
+            ctx.extent = extent.value_or(m.extent);
+            auto e = n.pass->beginFrame(ctx);
+            if (e && !extent) extent = e;
+        } catch (const std::exception& e) {
+            fail(n, e);
+        }
+    }
+    Extent ext = extent.value_or(m.defaultExtent.width > 0 ? m.defaultExtent : m.extent);
+    if (ext.width <= 0 || ext.height <= 0)
+        throw Error("frame " + std::to_string(frameNumber) +
+                    ": no pass reports a frame size and no default size was given");
+    if (ext != m.extent) {
+        if (m.frames > 0)
+            spdlog::warn("frame {}: resolution changed from {}x{} to {}x{}; history reset",
+                         frameNumber, m.extent.width, m.extent.height, ext.width, ext.height);
+        m.allocate(ext);
+    }
+    ctx.extent = ext;
+    ctx.historyValid = m.historyValid;
+    m.bind();
+
+    m.times.resize(m.g.order.size());
+    auto frameStart = Clock::now();
+    for (size_t k = 0; k < m.g.order.size(); ++k) {
+        auto& n = m.g.nodes[size_t(m.g.order[k])];
+        auto t0 = Clock::now();
+        try {
+            n.pass->execute(ctx, m.io[k]);
+        } catch (const std::exception& e) {
+            fail(n, e);
+        }
+        m.times[k] = {n.name, std::chrono::duration<double, std::milli>(Clock::now() - t0).count()};
+    }
+    m.frameMs = std::chrono::duration<double, std::milli>(Clock::now() - frameStart).count();
+    // Swap, not copy: this frame's buffers become next frame's history.
+    m.current = 1 - m.current;
+    m.historyValid = true;
+    m.sceneCur = 1 - m.sceneCur;
+    m.hasPrevScene = true;
+    ++m.frames;
+}
+
+void Executor::resetHistory() {
+    impl_->historyValid = false;
+    impl_->hasPrevScene = false;
+}
+
+void Executor::endRun() {
+    for (int v : impl_->g.order) impl_->g.nodes[size_t(v)].pass->endRun();
+}
+
+const std::vector<PassTime>& Executor::lastTimes() const { return impl_->times; }
+double Executor::lastFrameMs() const { return impl_->frameMs; }
+const MemoryStats& Executor::memory() const { return impl_->memory; }
+Extent Executor::extent() const { return impl_->extent; }
+int64_t Executor::framesRun() const { return impl_->frames; }
+
+ImageView Executor::output(std::string_view passPort) const {
+    const auto& g = impl_->g;
+    for (size_t i = 0; i < g.markedNames.size(); ++i)
+        if (g.markedNames[i] == passPort) {
+            int r = g.markedResource[i];
+            const auto& res = g.resources[size_t(r)];
+            // After the swap the frame just written is the "previous" history buffer.
+            return impl_->viewOf(r, res.history);
+        }
+    throw Error("'" + std::string(passPort) + "' is not a marked output of graph '" + g.desc.name +
+                "' (add it to \"outputs\")");
+}
+
+}  // namespace kestrel
