@@ -1,0 +1,324 @@
+#include "eval/Metrics.h"
+
+#include <kestrel/Error.h>
+
+#include <algorithm>
+#include <cfloat>
+#include <cmath>
+#include <string>
+#include <vector>
+
+namespace kestrel::eval {
+namespace {
+
+constexpr int kRgb = 3;
+
+void requireRgb(const ImageView& v, const char* what) {
+    if (!v.valid() || v.channels() < kRgb || v.format == Format::Int32)
+        throw Error(std::string(what) + ": expected an RGB float image (Float3 or Float4)");
+}
+
+void requireSameRgb(const ImageView& a, const ImageView& b) {
+    requireRgb(a, "output");
+    requireRgb(b, "reference");
+    if (a.extent != b.extent)
+        throw Error("image sizes differ: output " + std::to_string(a.width()) + "x" +
+                    std::to_string(a.height()) + ", reference " + std::to_string(b.width()) + "x" +
+                    std::to_string(b.height()));
+}
+
+std::string sizeText(const ImageView& v) {
+    return std::to_string(v.width()) + "x" + std::to_string(v.height());
+}
+
+// sRGB OETF, IEC 61966-2-1.
+float srgbEncode(float c) {
+    return c <= 0.0031308f ? 12.92f * c : 1.055f * std::pow(c, 1.0f / 2.4f) - 0.055f;
+}
+
+// ---- SSIM (Wang et al. 2004) ------------------------------------------------------------------
+
+constexpr int kRadius = 5;  // 11x11 window
+constexpr int kTaps = 2 * kRadius + 1;
+constexpr double kSigma = 1.5;
+constexpr float kC1 = 0.01f * 0.01f;  // (K1 L)^2
+constexpr float kC2 = 0.03f * 0.03f;  // (K2 L)^2
+
+struct Gaussian {
+    float w[kTaps];
+    Gaussian() {
+        double sum = 0;
+        double tmp[kTaps];
+        for (int k = 0; k < kTaps; ++k) {
+            const double d = k - kRadius;
+            tmp[k] = std::exp(-d * d / (2 * kSigma * kSigma));
+            sum += tmp[k];
+        }
+        for (int k = 0; k < kTaps; ++k) w[k] = float(tmp[k] / sum);
+    }
+};
+const Gaussian kGauss;
+
+// out[x] = sum_k g[k] in[x + k - R], over taps inside [0, n), divided by the sum of those taps'
+// weights (truncated, renormalised window; identical to the plain sum in the interior).
+void blurLine(const float* __restrict in, float* __restrict out, int n) {
+    const int lo = std::min(kRadius, n), hi = std::max(lo, n - kRadius);
+    for (int x = lo; x < hi; ++x) {
+        float s = 0;
+        for (int k = 0; k < kTaps; ++k) s += kGauss.w[k] * in[x + k - kRadius];
+        out[x] = s;
+    }
+    auto edge = [&](int x) {
+        float s = 0, ws = 0;
+        for (int k = 0; k < kTaps; ++k) {
+            const int i = x + k - kRadius;
+            if (i < 0 || i >= n) continue;
+            s += kGauss.w[k] * in[i];
+            ws += kGauss.w[k];
+        }
+        out[x] = s / ws;  // ws >= the centre weight > 0
+    };
+    for (int x = 0; x < lo; ++x) edge(x);
+    for (int x = hi; x < n; ++x) edge(x);
+}
+
+// Vertical blur of output row y: rows[k] is input row y + k - R (only k in the valid range is
+// read); same renormalisation at the top and bottom border.
+void blurColumnRow(const float* const* rows, float* __restrict out, int w, int h, int y) {
+    if (y >= kRadius && y + kRadius < h) {
+        for (int x = 0; x < w; ++x) {
+            float s = 0;
+            for (int k = 0; k < kTaps; ++k) s += kGauss.w[k] * rows[k][x];
+            out[x] = s;
+        }
+        return;
+    }
+    const int k0 = std::max(0, kRadius - y), k1 = std::min(kTaps, h - y + kRadius);
+    float ws = 0;
+    for (int x = 0; x < w; ++x) out[x] = 0;
+    for (int k = k0; k < k1; ++k) {
+        const float g = kGauss.w[k];
+        ws += g;
+        for (int x = 0; x < w; ++x) out[x] += g * rows[k][x];
+    }
+    const float inv = 1.0f / ws;
+    for (int x = 0; x < w; ++x) out[x] *= inv;
+}
+
+constexpr int kMoments = 5;  // x, y, x^2, y^2, xy (about the global means)
+
+// Mean SSIM of one channel, streamed row by row: each input row's five local moments are blurred
+// horizontally into a ring of the last 11 rows, and each output row is blurred vertically from
+// that ring (separable Gaussian; the truncated window of a border pixel is the product of two
+// truncated 1D windows, so renormalising each 1D pass is exact). The working set stays in cache.
+// Second moments are taken about each image's global mean (cx, cy): variances and covariance do
+// not change, and float cancellation in E[x^2] - mu^2 shrinks (exact for constant images).
+double ssimPlane(const float* xs, const float* ys, int w, int h) {
+    const size_t n = size_t(w) * size_t(h);
+    double sx = 0, sy = 0;
+    for (size_t i = 0; i < n; ++i) sx += xs[i], sy += ys[i];
+    const float cx = float(sx / double(n)), cy = float(sy / double(n));
+
+    const size_t W = size_t(w);
+    std::vector<float> ring(size_t(kMoments) * kTaps * W);  // [moment][slot][x]
+    auto slot = [&](int m, int row) { return ring.data() + (size_t(m) * kTaps + row % kTaps) * W; };
+    std::vector<float> prod(kMoments * W), acc(kMoments * W);
+    float *dx = prod.data(), *dy = dx + W, *xx = dy + W, *yy = xx + W, *xy = yy + W;
+    const float *mx = acc.data(), *my = mx + W, *exx = my + W, *eyy = exx + W, *exy = eyy + W;
+    double total = 0;
+    for (int r = 0; r < h + kRadius; ++r) {
+        if (r < h) {
+            const float* xr = xs + size_t(r) * W;
+            const float* yr = ys + size_t(r) * W;
+            for (int x = 0; x < w; ++x) {
+                dx[x] = xr[x] - cx;
+                dy[x] = yr[x] - cy;
+                xx[x] = dx[x] * dx[x];
+                yy[x] = dy[x] * dy[x];
+                xy[x] = dx[x] * dy[x];
+            }
+            for (int m = 0; m < kMoments; ++m) blurLine(prod.data() + size_t(m) * W, slot(m, r), w);
+        }
+        const int y = r - kRadius;
+        if (y < 0) continue;
+        for (int m = 0; m < kMoments; ++m) {
+            const float* rows[kTaps] = {};
+            for (int k = 0; k < kTaps; ++k) {
+                const int src = y + k - kRadius;
+                if (src >= 0 && src < h) rows[k] = slot(m, src);
+            }
+            blurColumnRow(rows, acc.data() + size_t(m) * W, w, h, y);
+        }
+        float rowSum = 0;
+        for (int x = 0; x < w; ++x) {
+            const float ux = mx[x] + cx, uy = my[x] + cy;
+            const float sxx = exx[x] - mx[x] * mx[x];
+            const float syy = eyy[x] - my[x] * my[x];
+            const float sxy = exy[x] - mx[x] * my[x];
+            // Wang et al. 2004, eq. 13.
+            const float num = (2 * ux * uy + kC1) * (2 * sxy + kC2);
+            const float den = (ux * ux + uy * uy + kC1) * (sxx + syy + kC2);
+            rowSum += num / den;  // den >= C1 * (C2 - rounding) > 0 for values in [0, 1]
+        }
+        total += rowSum;
+    }
+    return total / double(n);
+}
+
+}  // namespace
+
+std::string_view toneMapName(ToneMap t) {
+    switch (t) {
+        case ToneMap::Reinhard:
+            return "reinhard";
+        case ToneMap::Clamp:
+            return "clamp";
+        case ToneMap::Srgb:
+            return "srgb";
+    }
+    return "?";
+}
+
+std::optional<ToneMap> parseToneMap(std::string_view name) {
+    for (ToneMap t : {ToneMap::Reinhard, ToneMap::Clamp, ToneMap::Srgb})
+        if (name == toneMapName(t)) return t;
+    return std::nullopt;
+}
+
+float toneMap(ToneMap t, float x) {
+    if (!(x > 0)) return 0;  // negatives and NaN
+    switch (t) {
+        case ToneMap::Reinhard:
+            return x > 1e30f ? 1.0f : std::min(1.0f, x / (1.0f + x));
+        case ToneMap::Clamp:
+            return std::min(1.0f, x);
+        case ToneMap::Srgb:
+            return srgbEncode(std::min(1.0f, x));
+    }
+    return 0;
+}
+
+Image sanitizedRgb(const ImageView& image, size_t* nonFinite, const char* what) {
+    requireRgb(image, what);
+    Image out(image.extent, Format::Float3);
+    const size_t n = image.pixels();
+    std::vector<unsigned char> bad(n, 0);
+    for (int c = 0; c < kRgb; ++c) {
+        const float* src = image.channel(c);
+        float* dst = out.channel(c);
+        for (size_t i = 0; i < n; ++i) {
+            const float v = src[i];
+            if (std::isfinite(v)) {
+                dst[i] = v;
+            } else {
+                bad[i] = 1;
+                dst[i] = std::isnan(v) ? 0.0f : (v > 0 ? FLT_MAX : -FLT_MAX);
+            }
+        }
+    }
+    if (nonFinite) {
+        size_t count = 0;
+        for (unsigned char b : bad) count += b;
+        *nonFinite = count;
+    }
+    return out;
+}
+
+Image toneMapped(const ImageView& rgb, ToneMap t) {
+    requireRgb(rgb, "image");
+    Image out(rgb.extent, Format::Float3);
+    const size_t n = rgb.pixels();
+    for (int c = 0; c < kRgb; ++c) {
+        const float* src = rgb.channel(c);
+        float* dst = out.channel(c);
+        switch (t) {
+            case ToneMap::Reinhard:
+                for (size_t i = 0; i < n; ++i) dst[i] = toneMap(ToneMap::Reinhard, src[i]);
+                break;
+            case ToneMap::Clamp:
+                for (size_t i = 0; i < n; ++i) dst[i] = std::clamp(src[i], 0.0f, 1.0f);
+                break;
+            case ToneMap::Srgb:
+                for (size_t i = 0; i < n; ++i) dst[i] = toneMap(ToneMap::Srgb, src[i]);
+                break;
+        }
+    }
+    return out;
+}
+
+double relMse(const ImageView& out, const ImageView& ref) {
+    requireSameRgb(out, ref);
+    const size_t n = out.pixels();
+    double total = 0;
+    for (int c = 0; c < kRgb; ++c) {
+        const float *o = out.channel(c), *r = ref.channel(c);
+        for (size_t i = 0; i < n; ++i) {
+            // design.md section 5; in double so that FLT_MAX (a sanitised Inf) stays finite.
+            const double d = double(o[i]) - double(r[i]);
+            total += d * d / (double(r[i]) * double(r[i]) + 1e-2);
+        }
+    }
+    return n ? total / double(n * kRgb) : 0.0;
+}
+
+double psnr(const ImageView& outDisplay, const ImageView& refDisplay) {
+    requireSameRgb(outDisplay, refDisplay);
+    const size_t n = outDisplay.pixels();
+    double total = 0;
+    for (int c = 0; c < kRgb; ++c) {
+        const float *o = outDisplay.channel(c), *r = refDisplay.channel(c);
+        for (size_t i = 0; i < n; ++i) {
+            const double d = double(o[i]) - double(r[i]);
+            total += d * d;
+        }
+    }
+    const double mse = std::max(n ? total / double(n * kRgb) : 0.0, 1e-10);
+    return 10.0 * std::log10(1.0 / mse);  // peak 1
+}
+
+double ssim(const ImageView& outDisplay, const ImageView& refDisplay) {
+    requireSameRgb(outDisplay, refDisplay);
+    if (outDisplay.pixels() == 0) return 1.0;
+    double sum = 0;
+    for (int c = 0; c < kRgb; ++c)
+        sum += ssimPlane(outDisplay.channel(c), refDisplay.channel(c), outDisplay.width(),
+                         outDisplay.height());
+    return sum / kRgb;
+}
+
+double temporalInstability(const ImageView& out, const ImageView& outPrev, const ImageView& ref,
+                           const ImageView& refPrev) {
+    requireSameRgb(out, ref);
+    requireSameRgb(outPrev, refPrev);
+    if (out.extent != outPrev.extent)
+        throw Error("frame size changed within the sequence: " + sizeText(outPrev) + " then " +
+                    sizeText(out));
+    const size_t n = out.pixels();
+    double total = 0;
+    for (int c = 0; c < kRgb; ++c) {
+        const float *o = out.channel(c), *op = outPrev.channel(c);
+        const float *r = ref.channel(c), *rp = refPrev.channel(c);
+        for (size_t i = 0; i < n; ++i)
+            total += std::fabs((double(o[i]) - op[i]) - (double(r[i]) - rp[i]));
+    }
+    return n ? total / double(n * kRgb) : 0.0;
+}
+
+FrameMetrics compareImages(const ImageView& out, const ImageView& ref, ToneMap tm,
+                           const FrameImages* previous, FrameImages* current) {
+    requireSameRgb(out, ref);
+    FrameMetrics m;
+    Image o = sanitizedRgb(out, &m.nonFiniteOutput, "output");
+    Image r = sanitizedRgb(ref, &m.nonFiniteReference, "reference");
+    m.relMse = relMse(o, r);
+    FrameImages display{toneMapped(o, tm), toneMapped(r, tm)};
+    m.psnr = psnr(display.outDisplay, display.refDisplay);
+    m.ssim = ssim(display.outDisplay, display.refDisplay);
+    if (previous && previous->outDisplay.extent().pixels() > 0)
+        m.temporal = temporalInstability(display.outDisplay, previous->outDisplay,
+                                         display.refDisplay, previous->refDisplay);
+    if (current) *current = std::move(display);
+    return m;
+}
+
+}  // namespace kestrel::eval
