@@ -1,0 +1,83 @@
+#pragma once
+// Procedural test scene: a small analytic room path-traced on the CPU at 1 spp with every AOV
+// the Kestrel passes consume, plus a many-spp reference, written as EXR sequences
+// (docs/canonical-layout.md). Deterministic: the output depends only on the options, never on
+// the thread count. Independent of the Kestrel framework (only OpenEXR and threads).
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+namespace kestrel::scenegen {
+
+/// Row-major 4x4 matrix m[row * 4 + col], column-vector convention p' = M (x, y, z, 1)^T
+/// (same as kestrel::Mat4: copy element (r, c) to Mat4::m[r][c]).
+using Mat4 = std::array<float, 16>;
+
+struct SceneOptions {
+    int width = 160, height = 90;
+    int frames = 8;
+    int firstFrame = 1;
+    int referenceSpp = 64;
+    uint32_t seed = 1;
+    bool staticCamera = false;  ///< camera frozen at its frame-1 pose
+    bool movingObject = true;   ///< the sliding sphere moves (else frozen at its frame-1 place)
+    int cameraCutFrame = -1;    ///< from this frame on the camera jumps to a second viewpoint
+    /// Surface interactions per path, each with next-event estimation: 1 = direct light only,
+    /// 2 = direct + one indirect bounce (the default), 3 = two indirect bounces.
+    int bounces = 2;
+    int threads = 0;  ///< 0: hardware concurrency; the result never depends on it
+    /// AOVs left out of the files: albedo, emission, direct, indirect, normal, depth, position,
+    /// motion, objectId, camera (the matrices). Unknown names are rejected by writeSequence.
+    std::set<std::string> omit;
+    enum class Layout { Canonical, Games202 } layout = Layout::Canonical;
+};
+
+/// One 1-spp frame with its G-buffer, in the in-memory conventions of kestrel/Conventions.h.
+/// Images are planar: channel c of pixel (x, y) (y = 0 is the top row) at [c][y * width + x].
+struct FrameAovs {
+    int width = 0, height = 0, frame = 0;
+    std::array<std::vector<float>, 3> color;     ///< direct + indirect + emission
+    std::array<std::vector<float>, 3> albedo;    ///< first-hit diffuse albedo; 0 on background
+    std::array<std::vector<float>, 3> emission;  ///< first-hit emitted radiance; 0 on background
+    std::array<std::vector<float>, 3> direct;    ///< NEE at the first hit (radiance)
+    std::array<std::vector<float>, 3> indirect;  ///< everything after the first bounce
+    std::array<std::vector<float>, 3> normal;    ///< world, unit, facing the camera; 0 on bg
+    std::array<std::vector<float>, 3> position;  ///< world; 0 on background
+    std::vector<float> depth;                    ///< linear view depth; 1e10 on background
+    std::array<std::vector<float>, 2> motion;    ///< pixels to frame-1, x right, y down
+    std::vector<int32_t> objectId;               ///< -1 on background
+    Mat4 worldToCamera{};                        ///< OpenGL view: camera looks down -Z, +Y up
+    Mat4 projection{};    ///< OpenGL clip-from-camera (ndc in [-1, 1]) from the vertical fov
+    Mat4 worldToPixel{};  ///< after the divide: pixel coords, x right, y down, centres at +0.5
+    Mat4 cameraToWorld{};
+    std::map<int, Mat4> objectToWorld;  ///< every object id of the scene (0..N-1)
+};
+
+/// Renders frame `frame` at 1 spp with every AOV.
+FrameAovs renderFrame(const SceneOptions& options, int frame);
+/// Renders the reference of `frame` (options.referenceSpp samples): RGB planar, 3 * w * h floats
+/// (R plane, G plane, B plane). Same estimator and primary rays as renderFrame, other random
+/// numbers: it is the expectation of the 1-spp frames.
+std::vector<float> renderReference(const SceneOptions& options, int frame);
+/// Number of objects (ids 0..N-1) of the scene.
+int objectCount();
+
+struct WriteStats {
+    double seconds = 0;
+    int filesWritten = 0;
+    int framesWritten = 0;
+};
+/// Called after each frame: (frames done, frames total).
+using ProgressFn = std::function<void(int, int)>;
+/// Writes the sequence (noisy frames + references) into `dir` in options.layout. Prints nothing.
+/// Throws std::invalid_argument for bad options, std::runtime_error on I/O errors. Each file is
+/// written to a temporary name then renamed, so no partial file is left behind.
+WriteStats writeSequence(const SceneOptions& options, const std::filesystem::path& dir,
+                         const ProgressFn& progress = {});
+
+}  // namespace kestrel::scenegen
