@@ -1,0 +1,158 @@
+#include "Common.h"
+
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "DefaultScene.h"
+#include "kestrel/Log.h"
+
+namespace kestrel::cli {
+
+namespace fs = std::filesystem;
+bool gVerbose = false;
+
+void setupLogging(bool verbose) {
+    gVerbose = verbose;
+    auto logger = spdlog::stderr_color_mt("kestrel");
+    logger->set_pattern("%^%l%$: %v");
+    spdlog::set_default_logger(logger);
+    spdlog::set_level(verbose ? spdlog::level::debug : spdlog::level::info);
+}
+
+std::unique_ptr<Plugins> loadPlugins() {
+    auto p = std::make_unique<Plugins>();
+    p->loader.loadDirectories(defaultPluginDirectories(), p->registry);
+    if (p->registry.all().empty())
+        spdlog::warn("no pass plugins found (looked in the install's plugin directory and "
+                     "KESTREL_PLUGIN_PATH)");
+    return p;
+}
+
+namespace {
+fs::path exeDir() {
+    std::error_code ec;
+    return fs::read_symlink("/proc/self/exe", ec).parent_path();
+}
+
+bool isSource(const PassType& t) {
+    for (const auto& p : t.desc.ports)
+        if (p.kind == PortKind::Input) return false;
+    return t.desc.findParam("path") != nullptr;
+}
+bool isSink(const PassType& t) { return t.desc.sink && t.desc.findParam("path") != nullptr; }
+
+std::string pathParam(const PassNode& n) {
+    auto j = nlohmann::json::parse(n.paramsJson);
+    if (j.contains("path") && j["path"].is_string()) return j["path"];
+    return {};
+}
+
+/// Applies "PATTERN" or "name=PATTERN" to the path of the matching pass.
+void assignPaths(GraphDesc& g, const Registry& reg, const std::vector<std::string>& specs,
+                 bool (*kind)(const PassType&), const char* flag) {
+    std::vector<std::string> candidates;
+    for (const auto& n : g.passes)
+        if (const PassType* t = reg.find(n.type); t && kind(*t)) candidates.push_back(n.name);
+    for (const auto& spec : specs) {
+        std::string name, pattern = spec;
+        auto eq = spec.find('=');
+        if (eq != std::string::npos && eq > 0 && spec.find('/') > eq) {
+            name = spec.substr(0, eq);
+            pattern = spec.substr(eq + 1);
+        } else {
+            if (candidates.size() != 1) {
+                std::string list;
+                for (const auto& c : candidates) list += (list.empty() ? "" : ", ") + c;
+                throw Error(std::string(flag) + " " + spec + ": the graph has " +
+                            std::to_string(candidates.size()) + " such passes (" + list +
+                            "); write " + flag + " name=PATTERN");
+            }
+            name = candidates.front();
+        }
+        if (std::find(candidates.begin(), candidates.end(), name) == candidates.end())
+            throw Error(std::string(flag) + " " + spec + ": no " +
+                        (std::string(flag) == "--input" ? "input" : "output") + " pass named '" +
+                        name + "'");
+        applyOverride(g, name + ".path=" + nlohmann::json(pattern).dump());
+    }
+}
+}  // namespace
+
+fs::path shippedGraph(const std::string& name) {
+    fs::path installed = exeDir() / ".." / KESTREL_INSTALL_GRAPH_DIR / name;
+    std::error_code ec;
+    if (fs::exists(installed, ec)) return fs::weakly_canonical(installed, ec);
+    return fs::path(KESTREL_SOURCE_GRAPH_DIR) / name;
+}
+
+GraphDesc prepareGraph(const GraphOptions& o, const Registry& reg) {
+    fs::path path = o.graph.empty() ? shippedGraph("svgf.json") : fs::path(o.graph);
+    GraphDesc g = loadGraphFile(path);
+    assignPaths(g, reg, o.inputs, isSource, "--input");
+    assignPaths(g, reg, o.outputs, isSink, "--output");
+    for (const auto& s : o.sets) applyOverride(g, s);
+    for (const auto& n : g.passes) {
+        const PassType* t = reg.find(n.type);
+        if (!t || !pathParam(n).empty()) continue;
+        if (isSource(*t)) {
+            fs::path scene = ensureDefaultScene(fs::path(o.outDir) / "default-scene");
+            applyOverride(g, n.name + ".path=" +
+                                 nlohmann::json((scene / "noisy" / "frame_####.exr").string()).dump());
+            spdlog::info("{}: no --input given; using the built-in scene in {}", n.name,
+                         scene.string());
+        } else if (isSink(*t)) {
+            fs::path out = fs::path(o.outDir) / g.name / (n.name + ".####.exr");
+            applyOverride(g, n.name + ".path=" + nlohmann::json(out.string()).dump());
+            if (t->desc.findParam("preview")) {
+                fs::path png = fs::path(o.outDir) / g.name / (n.name + ".####.png");
+                applyOverride(g, n.name + ".preview=" + nlohmann::json(png.string()).dump());
+            }
+            spdlog::info("{}: no --output given; writing {}", n.name, out.string());
+        }
+    }
+    return g;
+}
+
+void printGraphError(const GraphError& e) {
+    for (const auto& d : e.diagnostics()) std::cerr << "error: " << d.str() << "\n";
+}
+
+std::vector<int64_t> parseFrameList(const std::string& text) {
+    std::vector<int64_t> frames;
+    auto bad = [&](const std::string& why) {
+        return Error("--frames " + text + ": " + why +
+                     " (expected e.g. 1-100, 1-100x2 or 3,4,10-20x2)");
+    };
+    size_t start = 0;
+    while (start <= text.size()) {
+        size_t comma = text.find(',', start);
+        std::string item = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+        if (item.empty()) throw bad("empty item");
+        long long a = 0, b = 0, step = 1;
+        char dash = 0, x = 0;
+        int consumed = 0;
+        if (std::sscanf(item.c_str(), "%lld%n", &a, &consumed) == 1 && size_t(consumed) == item.size()) {
+            frames.push_back(a);
+        } else if (std::sscanf(item.c_str(), "%lld%c%lld%n", &a, &dash, &b, &consumed) == 3 &&
+                   dash == '-' && size_t(consumed) == item.size()) {
+            if (b < a) throw bad("range end before start");
+            for (long long f = a; f <= b; ++f) frames.push_back(f);
+        } else if (std::sscanf(item.c_str(), "%lld%c%lld%c%lld%n", &a, &dash, &b, &x, &step, &consumed) == 5 &&
+                   dash == '-' && x == 'x' && size_t(consumed) == item.size()) {
+            if (b < a) throw bad("range end before start");
+            if (step <= 0) throw bad("step must be positive");
+            for (long long f = a; f <= b; f += step) frames.push_back(f);
+        } else {
+            throw bad("cannot read '" + item + "'");
+        }
+        if (comma == std::string::npos) break;
+        start = comma + 1;
+    }
+    return frames;
+}
+
+}  // namespace kestrel::cli

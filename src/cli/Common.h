@@ -1,0 +1,50 @@
+#pragma once
+// Shared by the CLI's subcommands: logging set-up, plugin loading, preparing a graph with the
+// user's --input/--output/--set, and printing diagnostics.
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <kestrel/Compiler.h>
+#include <kestrel/Graph.h>
+#include <kestrel/Plugin.h>
+#include <kestrel/Registry.h>
+
+namespace kestrel::cli {
+
+/// Verbosity shared by all subcommands (-v).
+extern bool gVerbose;
+void setupLogging(bool verbose);
+
+/// Registry with every plugin from the default directories loaded. The loader must outlive
+/// every pass created from the registry.
+struct Plugins {
+    PluginLoader loader;
+    Registry registry;
+};
+std::unique_ptr<Plugins> loadPlugins();
+
+/// The graph shipped under `name` (e.g. "svgf.json"): install share dir or source tree.
+std::filesystem::path shippedGraph(const std::string& name);
+
+/// Options every graph-running command takes.
+struct GraphOptions {
+    std::string graph;                 ///< path; empty: the default SVGF graph
+    std::vector<std::string> inputs;   ///< PATTERN or name=PATTERN
+    std::vector<std::string> outputs;  ///< PATTERN or name=PATTERN
+    std::vector<std::string> sets;     ///< pass.param=value
+    std::string outDir = "kestrel-out";
+};
+
+/// Loads the graph, applies --input/--output/--set. A source left without a path runs on the
+/// built-in scene (generated on first use); a sink without a path writes under outDir.
+GraphDesc prepareGraph(const GraphOptions& options, const Registry& registry);
+
+/// Prints every diagnostic of a GraphError on stderr, one per line.
+void printGraphError(const GraphError& e);
+
+/// Parses "1-100", "1-100x2", "3,4,10-20x2" into frame numbers (Error naming the text).
+std::vector<int64_t> parseFrameList(const std::string& text);
+
+}  // namespace kestrel::cli

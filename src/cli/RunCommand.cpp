@@ -1,0 +1,229 @@
+// kestrel run: compile a graph and execute it frame by frame over a sequence.
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <iostream>
+#include <map>
+
+#include "Commands.h"
+#include "Common.h"
+#include "Progress.h"
+#include "kestrel/Executor.h"
+#include "kestrel/Log.h"
+
+namespace kestrel::cli {
+
+namespace {
+
+std::atomic<bool> gInterrupted{false};
+extern "C" void onInterrupt(int) { gInterrupted.store(true); }
+
+struct RunOptions {
+    GraphOptions graph;
+    std::string frames;
+    int threads = 0;
+    bool resume = false;
+    int warmup = 0;
+    bool skipBadFrames = false;
+    std::string size;  // WxH for graphs without a source
+};
+
+void logReport(const CompiledGraph& g) {
+    const auto& r = g.report();
+    for (const auto& n : r.notes) spdlog::info("scene: {}", n);
+    for (const auto& p : r.elided) spdlog::info("left out {}: {}", p.pass, p.reason);
+    for (const auto& p : r.pruned) spdlog::info("pruned {}: {}", p.pass, p.reason);
+    for (const auto& a : r.absent) spdlog::debug("absent {}", a);
+    spdlog::info("{} live passes; memory plan: {} transient planes (aliased from {})",
+                 g.executionOrder().size(), g.transientPlaneCount(), g.unaliasedPlaneCount());
+}
+
+int runGraph(const RunOptions& o) {
+    std::unique_ptr<Plugins> plugins;
+    std::unique_ptr<CompiledGraph> compiled;
+    std::vector<int64_t> frames;
+    Extent size{};
+    try {
+        plugins = loadPlugins();
+        GraphDesc g = prepareGraph(o.graph, plugins->registry);
+        if (!o.frames.empty()) frames = parseFrameList(o.frames);
+        if (!o.size.empty()) {
+            if (std::sscanf(o.size.c_str(), "%dx%d", &size.width, &size.height) != 2 ||
+                size.width <= 0 || size.height <= 0)
+                throw Error("--size " + o.size + ": expected WIDTHxHEIGHT");
+        }
+        CompileOptions copt;
+        copt.firstFrame = frames.empty() ? 0 : frames.front();
+        compiled = compileGraph(g, plugins->registry, copt);
+    } catch (const GraphError& e) {
+        printGraphError(e);
+        return 2;
+    } catch (const Error& e) {
+        std::cerr << "error: " << e.what() << "\n";
+        return 2;
+    }
+    logReport(*compiled);
+
+    if (frames.empty()) {
+        for (const auto& [name, pass] : compiled->livePasses()) {
+            auto avail = pass->availableFrames();
+            if (!avail.empty()) {
+                frames = avail;
+                break;
+            }
+        }
+        if (frames.empty()) {
+            std::cerr << "error: no frames to run: give --frames A-B\n";
+            return 2;
+        }
+    }
+    // Warm-up frames run before the range without writing (history only), so a sequence cut
+    // into chunks matches the unsplit run.
+    std::vector<std::pair<int64_t, bool>> schedule;  // frame, write
+    if (o.warmup > 0) {
+        int64_t step = frames.size() > 1 ? std::max<int64_t>(1, frames[1] - frames[0]) : 1;
+        for (int i = o.warmup; i >= 1; --i) schedule.push_back({frames.front() - i * step, false});
+    }
+    for (auto f : frames) schedule.push_back({f, true});
+
+    auto sinks = compiled->sinks();
+    if (o.resume) {
+        // Skip frames whose every output exists; warm history up on the frames just before the
+        // first missing one (at most 32: the longest history any shipped pass keeps).
+        size_t firstMissing = schedule.size();
+        for (size_t i = 0; i < schedule.size(); ++i) {
+            if (!schedule[i].second) continue;
+            bool done = !sinks.empty();
+            for (auto& [n, p] : sinks) done = done && p->frameWritten(schedule[i].first);
+            if (!done) {
+                firstMissing = i;
+                break;
+            }
+        }
+        size_t warm = std::min<size_t>(firstMissing, size_t(std::max(o.warmup, 32)));
+        std::vector<std::pair<int64_t, bool>> resumed;
+        for (size_t i = firstMissing - warm; i < schedule.size(); ++i)
+            resumed.push_back({schedule[i].first, i >= firstMissing && schedule[i].second});
+        if (firstMissing > 0)
+            spdlog::info("--resume: {} frames already written; warming history up on {} frames",
+                         firstMissing, warm);
+        schedule = resumed;
+        if (firstMissing == frames.size() + size_t(std::max(o.warmup, 0)))
+            spdlog::info("--resume: every frame is already written");
+    }
+
+    Parallel parallel(o.threads);
+    RunInfo info;
+    info.graphName = compiled->desc().name;
+    info.graphPath = compiled->desc().sourcePath.string();
+    info.kestrelVersion = KESTREL_VERSION;
+    Executor exec(*compiled, parallel, info, size);
+    try {
+        exec.beginRun(frames.front(), frames.back());
+    } catch (const Error& e) {
+        std::cerr << "error: " << e.what() << "\n";
+        return 1;
+    }
+
+    gInterrupted = false;
+    auto oldHandler = std::signal(SIGINT, onInterrupt);
+    Progress progress(schedule.size());
+    std::map<std::string, std::vector<double>> passTimes;
+    std::vector<double> frameTimes;
+    int failures = 0, written = 0;
+    int rc = 0;
+    for (size_t i = 0; i < schedule.size(); ++i) {
+        auto [frame, write] = schedule[i];
+        try {
+            exec.runFrame(frame, write);
+        } catch (const FrameError& e) {
+            if (!o.skipBadFrames) {
+                progress.clear();
+                std::cerr << "error: " << e.what() << "\n";
+                rc = 1;
+                break;
+            }
+            progress.clear();
+            spdlog::warn("skipped: {} (history reset)", e.what());
+            exec.resetHistory();
+            ++failures;
+            continue;
+        } catch (const Error& e) {
+            progress.clear();
+            std::cerr << "error: " << e.what() << "\n";
+            rc = 1;
+            break;
+        }
+        if (write) ++written;
+        frameTimes.push_back(exec.lastFrameMs());
+        for (const auto& t : exec.lastTimes()) passTimes[t.pass].push_back(t.ms);
+        if (gVerbose) {
+            std::string detail;
+            for (const auto& t : exec.lastTimes()) detail += fmt::format(" {}={:.2f}", t.pass, t.ms);
+            progress.clear();
+            spdlog::debug("frame {}: {:.2f} ms{}", frame, exec.lastFrameMs(), detail);
+        }
+        progress.update(i + 1, frame, exec.lastFrameMs(), write);
+        if (gInterrupted) {
+            progress.clear();
+            spdlog::warn("interrupted: stopped after frame {}; every written frame is complete", frame);
+            rc = 130;
+            break;
+        }
+    }
+    std::signal(SIGINT, oldHandler);
+    progress.finish();
+    exec.endRun();
+
+    if (!frameTimes.empty()) {
+        auto median = [](std::vector<double> v) {
+            std::sort(v.begin(), v.end());
+            return v[v.size() / 2];
+        };
+        spdlog::info("{} frames run ({} written{}), median {:.2f} ms per frame, {:.1f} MB of graph "
+                     "memory ({:.0f} bytes per pixel)",
+                     frameTimes.size(), written,
+                     failures ? fmt::format(", {} skipped", failures) : std::string(),
+                     median(frameTimes), exec.memory().peakBytes / 1e6,
+                     double(exec.memory().peakBytes) / double(std::max<size_t>(1, exec.extent().pixels())));
+        for (const auto& n : compiled->executionOrder())
+            if (passTimes.count(n)) spdlog::debug("  {:<24} {:8.3f} ms median", n, median(passTimes[n]));
+    }
+    return rc;
+}
+
+}  // namespace
+
+void addRunCommand(CLI::App& app, Action& action) {
+    auto* cmd = app.add_subcommand("run", "Run a graph over a frame sequence");
+    auto o = std::make_shared<RunOptions>();
+    cmd->add_option("GRAPH", o->graph.graph, "Graph JSON file (default: the shipped svgf.json)");
+    cmd->add_option("--input", o->graph.inputs,
+                    "Input frames: PATTERN (frame.####.exr, %04d) or name=PATTERN for a named "
+                    "loader (default: the built-in scene)")
+        ->expected(1)
+        ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+    cmd->add_option("--output", o->graph.outputs,
+                    "Output frames: PATTERN or name=PATTERN (default: kestrel-out/<graph>/)")
+        ->expected(1)
+        ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+    cmd->add_option("--frames", o->frames, "Frames to run: 1-100, 1-100x2, 3,4,10-20x2 (default: all found)");
+    cmd->add_option("--set", o->graph.sets, "Override a parameter: pass.param=value (repeatable)")
+        ->expected(1)
+        ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+    cmd->add_option("--threads", o->threads, "Worker threads (default: all cores)")->check(CLI::Range(0, 1024));
+    cmd->add_flag("--resume", o->resume, "Skip frames whose output exists, warming history up first");
+    cmd->add_option("--warmup", o->warmup, "Run N frames before the range without writing them")
+        ->check(CLI::Range(0, 100000));
+    cmd->add_flag("--skip-bad-frames", o->skipBadFrames, "Skip missing or corrupt frames (history is reset)");
+    cmd->add_option("--size", o->size, "Frame size WxH for graphs without an input pass");
+    cmd->add_option("--out-dir", o->graph.outDir, "Where default outputs and the built-in scene go");
+    cmd->add_flag("-v,--verbose", gVerbose, "Per-frame and per-pass timings, details of errors");
+    cmd->callback([&action, o] { action = [o] { return runGraph(*o); }; });
+}
+
+}  // namespace kestrel::cli

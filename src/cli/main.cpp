@@ -1,0 +1,58 @@
+// kestrel: compile and run render-pass graphs over image sequences.
+#include <iostream>
+
+#include "Commands.h"
+#include "Common.h"
+#include "kestrel/Error.h"
+
+int main(int argc, char** argv) {
+    CLI::App app{"kestrel: a node-graph render-pass framework for denoising image sequences",
+                 "kestrel"};
+    app.set_version_flag("--version", std::string("kestrel ") + KESTREL_VERSION);
+    app.require_subcommand(0, 1);
+    bool verbose = false;
+    app.add_flag("-v,--verbose", verbose, "More detail in logs and error messages")->configurable(false);
+
+    kestrel::cli::Action action;
+    kestrel::cli::addRunCommand(app, action);
+    kestrel::cli::addValidateCommand(app, action);
+    kestrel::cli::addPassesCommand(app, action);
+    kestrel::cli::addGraphCommand(app, action);
+#ifdef KESTREL_HAS_SCENEGEN
+    kestrel::cli::addScenegenCommand(app, action);
+#endif
+#ifdef KESTREL_HAS_EVAL
+    kestrel::cli::addCompareCommand(app, action);
+#endif
+#ifdef KESTREL_HAS_BENCH
+    kestrel::cli::addBenchCommand(app, action);
+#endif
+    app.footer("With no subcommand, `kestrel` runs graphs/svgf.json on the built-in scene.");
+
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+        int code = app.exit(e);
+        return code == 0 ? 0 : 2;
+    }
+    kestrel::cli::setupLogging(verbose || kestrel::cli::gVerbose);
+    try {
+        if (!action) {
+            // No subcommand: the main job, SVGF on the built-in scene.
+            const char* args[] = {"kestrel", "run"};
+            CLI::App runApp{"kestrel run", "kestrel"};
+            kestrel::cli::addRunCommand(runApp, action);
+            runApp.parse(2, const_cast<char**>(args));
+        }
+        return action();
+    } catch (const kestrel::GraphError& e) {
+        kestrel::cli::printGraphError(e);
+        return 2;
+    } catch (const kestrel::Error& e) {
+        std::cerr << "error: " << e.what() << "\n";
+        return 1;
+    } catch (const std::exception& e) {
+        std::cerr << "error: " << e.what() << "\n";
+        return 1;
+    }
+}
