@@ -189,7 +189,8 @@ float toneMap(ToneMap t, float x) {
     if (!(x > 0)) return 0;  // negatives and NaN
     switch (t) {
         case ToneMap::Reinhard:
-            return x > 1e30f ? 1.0f : std::min(1.0f, x / (1.0f + x));
+            // Reinhard et al. 2002 eq. 3 per channel, then a 2.2 display gamma.
+            return x > 1e30f ? 1.0f : std::pow(std::min(1.0f, x / (1.0f + x)), 1.0f / 2.2f);
         case ToneMap::Clamp:
             return std::min(1.0f, x);
         case ToneMap::Srgb:

@@ -90,8 +90,8 @@ TEST(Metrics, PsnrHandComputed) {
 }
 
 TEST(Metrics, ToneMaps) {
-    EXPECT_FLOAT_EQ(toneMap(ToneMap::Reinhard, 1.0f), 0.5f);
-    EXPECT_FLOAT_EQ(toneMap(ToneMap::Reinhard, 3.0f), 0.75f);
+    EXPECT_FLOAT_EQ(toneMap(ToneMap::Reinhard, 1.0f), std::pow(0.5f, 1 / 2.2f));
+    EXPECT_FLOAT_EQ(toneMap(ToneMap::Reinhard, 3.0f), std::pow(0.75f, 1 / 2.2f));
     EXPECT_FLOAT_EQ(toneMap(ToneMap::Reinhard, -2.0f), 0.0f);
     EXPECT_FLOAT_EQ(toneMap(ToneMap::Reinhard, std::numeric_limits<float>::infinity()), 1.0f);
     EXPECT_FLOAT_EQ(toneMap(ToneMap::Reinhard, std::numeric_limits<float>::quiet_NaN()), 0.0f);
