@@ -4,6 +4,16 @@
 
 namespace kestrel::testing {
 
+namespace {
+// Ports are looked up by name AND kind: a pass may have an input and an output of the same name
+// (ATrous: color -> color).
+const PortDesc* findPortOfKind(const PassDesc& d, std::string_view name, PortKind kind) {
+    for (const auto& p : d.ports)
+        if (p.name == name && p.kind == kind) return &p;
+    return nullptr;
+}
+}  // namespace
+
 ParamValues makeParams(const PassDesc& desc, const std::map<std::string, ParamValue>& overrides) {
     nlohmann::json obj = nlohmann::json::object();
     for (const auto& [k, v] : overrides) obj[k] = detail::paramValueToJson(v);
@@ -27,8 +37,8 @@ PassHarness::PassHarness(PassHarness&&) noexcept = default;
 PassHarness::~PassHarness() = default;
 
 void PassHarness::bind(std::string_view input, const ImageView& image, bool valid) {
-    const PortDesc* p = desc_.findPort(input);
-    if (!p || p->kind != PortKind::Input)
+    const PortDesc* p = findPortOfKind(desc_, input, PortKind::Input);
+    if (!p)
         throw Error(desc_.type + " has no input '" + std::string(input) + "'");
     inputs_[std::string(input)] = Bound{image, valid};
 }
@@ -51,8 +61,8 @@ void PassHarness::run() {
         ctx.extent = *e;
     }
     for (const auto& name : used_) {
-        const PortDesc* p = desc_.findPort(name);
-        if (!p || p->kind != PortKind::Output)
+        const PortDesc* p = findPortOfKind(desc_, name, PortKind::Output);
+        if (!p)
             throw Error(desc_.type + " has no output '" + name + "'");
         auto it = outputs_.find(name);
         Format f = p->format == Format::Any ? Format::Float3 : p->format;
