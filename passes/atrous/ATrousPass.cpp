@@ -1,0 +1,262 @@
+#include "ATrousPass.h"
+
+#include <kestrel/PixelMath.h>
+
+#include <vector>
+
+#include "ScratchArena.h"
+
+using namespace kestrel;
+
+PassDesc ATrousPass::describe() {
+    PassDesc d("ATrous",
+               "One edge-avoiding A-Trous iteration (SVGF eq. 1-5): 5x5 B-spline taps at multiples"
+               " of `step`, weighted by depth, normal, object id and variance-normalised luminance;"
+               " variance propagated as sum(w^2 Var) / (sum w)^2.");
+    d.input("color", Format::Float3, "illumination to filter")
+        .optionalInput("variance", Format::Float,
+                       "luminance variance; without it the luminance weight uses sigmaColor")
+        .input("depth", Format::Float, "linear view depth")
+        .input("normal", Format::Float3, "world-space unit normal")
+        .optionalInput("objectId", Format::Int32, "object id: taps on another object get weight 0")
+        .output("color", Format::Float3, "filtered illumination")
+        .output("variance", Format::Float, "propagated variance (absent without variance input)")
+        .paramInt("step", 1, 1, 1024, "tap spacing in pixels (2^iteration)")
+        .paramFloat("sigmaZ", 1.0, 0.0, 1e6, "depth weight: tolerance in units of the depth slope")
+        .paramFloat("sigmaN", 128.0, 0.0, 1e4, "normal weight exponent on max(0, n_p . n_q)")
+        .paramFloat("sigmaL", 4.0, 0.0, 1e6, "luminance weight: tolerance in standard deviations")
+        .paramFloat("sigmaColor", 0.6, 1e-6, 1e6,
+                    "luminance tolerance (absolute) used when no variance is bound");
+    return d;
+}
+
+ATrousPass::ATrousPass(const ParamValues& p) {
+    s_.step = int(p.getInt("step"));
+    s_.sigmaZ = p.getFloat("sigmaZ");
+    s_.sigmaN = p.getFloat("sigmaN");
+    s_.sigmaL = p.getFloat("sigmaL");
+    s_.sigmaColor = p.getFloat("sigmaColor");
+}
+
+void ATrousPass::resolve(ResolveContext& rc) {
+    if (!rc.isBound("variance")) {
+        rc.setAbsent("variance", "no variance input");
+        rc.note("no variance input: luminance weight uses the fixed sigmaColor");
+    }
+}
+
+namespace {
+
+constexpr float kH[5] = {1.f / 16.f, 1.f / 4.f, 3.f / 8.f, 1.f / 4.f, 1.f / 16.f};
+constexpr float kEpsL = 1e-10f;    // SVGF eq. 5 epsilon (Falcor uses 1e-10 too)
+constexpr float kEpsZRel = 1e-5f;  // depth tolerance floor relative to z: float depth noise
+constexpr float kEpsZAbs = 1e-8f;
+constexpr float kMinDot = 1e-30f;
+constexpr float kZeroWeight = -1e4f;  // log2 weight penalty: fastExp2 returns exactly 0
+
+enum Plane { R, G, B, L, Z, GX, GY, NX, NY, NZ, VAR, INVL, kPlaneCount };
+
+/// Accumulators of one output row.
+struct RowAcc {
+    std::vector<float> w, r, g, b, v;
+    explicit RowAcc(int n) : w(size_t(n)), r(size_t(n)), g(size_t(n)), b(size_t(n)), v(size_t(n)) {}
+};
+
+/// Adds tap (dx, dy) to pixels [x0, x1) of one row: `c*` point at the row of p, `q*` at the row
+/// of q already shifted by dx, so index x addresses p = (x, y) and q = (x + dx, y + dy).
+template <bool kId, bool kNormal, bool kVar>
+void accumulateTap(int x0, int x1, float kh, float dxf, float dyf, float sigmaZ, float sigmaN,
+                   const float* __restrict cz, const float* __restrict cgx,
+                   const float* __restrict cgy, const float* __restrict cl,
+                   const float* __restrict cinvl, const float* __restrict cnx,
+                   const float* __restrict cny, const float* __restrict cnz,
+                   const int32_t* __restrict cid, const float* __restrict qz,
+                   const float* __restrict ql, const float* __restrict qnx,
+                   const float* __restrict qny, const float* __restrict qnz,
+                   const int32_t* __restrict qid, const float* __restrict qr,
+                   const float* __restrict qg, const float* __restrict qb,
+                   const float* __restrict qv, float* __restrict aw, float* __restrict ar,
+                   float* __restrict ag, float* __restrict ab, float* __restrict av) {
+    for (int x = x0; x < x1; ++x) {
+        // SVGF eq. 3: w_z = exp(-|z_p - z_q| / (sigma_z |grad z(p) . (p - q)| + eps))
+        float denomZ =
+            sigmaZ * std::fabs(cgx[x] * dxf + cgy[x] * dyf) + kEpsZRel * cz[x] + kEpsZAbs;
+        float ez = std::fabs(cz[x] - qz[x]) / denomZ;
+        // SVGF eq. 5: w_l = exp(-|l_p - l_q| / (sigma_l sqrt(g3x3(Var)) + eps)); 1/denominator
+        // precomputed per pixel.
+        float el = std::fabs(cl[x] - ql[x]) * cinvl[x];
+        float e = -(ez + el) * px::kLog2e;
+        if constexpr (kNormal) {
+            // SVGF eq. 4: w_n = max(0, n_p . n_q)^sigma_n, as exp2(sigma_n log2(dot)).
+            float dot = cnx[x] * qnx[x] + cny[x] * qny[x] + cnz[x] * qnz[x];
+            e += sigmaN * px::fastLog2(px::clamp(dot, kMinDot, 1.f));
+            e += dot > 0.f ? 0.f : kZeroWeight;
+        }
+        // Rejections are folded into the exponent (exp2 of it is exactly 0): a select on the
+        // weight itself keeps GCC from vectorising the loop.
+        if constexpr (kId) e += cid[x] == qid[x] ? 0.f : kZeroWeight;
+        float w = kh * px::fastExp2(e);
+        aw[x] += w;
+        ar[x] += w * qr[x];
+        ag[x] += w * qg[x];
+        ab[x] += w * qb[x];
+        if constexpr (kVar) av[x] += w * w * qv[x];
+    }
+}
+
+template <class Fn>
+void copySanitized(const float* __restrict src, float* __restrict dst, int n, Fn fn) {
+    for (int x = 0; x < n; ++x) dst[x] = fn(src[x]);
+}
+
+void lumaRow(const float* __restrict r, const float* __restrict g, const float* __restrict b,
+             float* __restrict l, int n) {
+    for (int x = 0; x < n; ++x) l[x] = px::luminance(r[x], g[x], b[x]);
+}
+
+template <bool kId, bool kNormal, bool kVar>
+void filterRows(int y0, int y1, int width, int height, const ATrousPass::Settings& s,
+                float* const* P, const int32_t* ids, const ImageView& outColor,
+                const ImageView* outVar) {
+    RowAcc acc(width);
+    for (int y = y0; y < y1; ++y) {
+        const size_t rowP = size_t(y) * size_t(width);
+        // The centre tap has w_z = w_n = w_l = 1 by definition (also on background pixels with a
+        // zero normal), so the weight sum never vanishes.
+        const float kc = kH[2] * kH[2];
+        for (int x = 0; x < width; ++x) {
+            acc.w[size_t(x)] = kc;
+            acc.r[size_t(x)] = kc * P[R][rowP + size_t(x)];
+            acc.g[size_t(x)] = kc * P[G][rowP + size_t(x)];
+            acc.b[size_t(x)] = kc * P[B][rowP + size_t(x)];
+            acc.v[size_t(x)] = kVar ? kc * kc * P[VAR][rowP + size_t(x)] : 0.f;
+        }
+        for (int j = 0; j < 5; ++j) {
+            const int dy = (j - 2) * s.step;
+            const int yq = y + dy;
+            if (yq < 0 || yq >= height) continue;  // taps outside the image are skipped
+            for (int i = 0; i < 5; ++i) {
+                if (i == 2 && j == 2) continue;
+                const int dx = (i - 2) * s.step;
+                const int x0 = std::max(0, -dx), x1 = std::min(width, width - dx);
+                if (x0 >= x1) continue;
+                // Shifted row pointers: index x of q* addresses pixel (x + dx, yq). Computed as
+                // an offset from the plane start so the pointer never leaves the allocation.
+                const ptrdiff_t offQ = ptrdiff_t(yq) * width + dx;
+                auto q = [&](int plane) { return P[plane] + offQ; };
+                const float kh = kH[i] * kH[j];
+                accumulateTap<kId, kNormal, kVar>(
+                    x0, x1, kh, float(dx), float(dy), s.sigmaZ, s.sigmaN, P[Z] + rowP, P[GX] + rowP,
+                    P[GY] + rowP, P[L] + rowP, P[INVL] + rowP, P[NX] + rowP, P[NY] + rowP,
+                    P[NZ] + rowP, kId ? ids + rowP : nullptr, q(Z), q(L), q(NX), q(NY), q(NZ),
+                    kId ? ids + offQ : nullptr, q(R), q(G), q(B), q(VAR), acc.w.data(),
+                    acc.r.data(), acc.g.data(), acc.b.data(), acc.v.data());
+            }
+        }
+        float* oc[3] = {outColor.row(0, y), outColor.row(1, y), outColor.row(2, y)};
+        float* ov = outVar ? outVar->row(0, y) : nullptr;
+        for (int x = 0; x < width; ++x) {
+            const float inv = 1.f / acc.w[size_t(x)];  // >= kc > 0
+            oc[0][x] = acc.r[size_t(x)] * inv;
+            oc[1][x] = acc.g[size_t(x)] * inv;
+            oc[2][x] = acc.b[size_t(x)] * inv;
+            // SVGF eq. 2: Var = sum(w^2 Var_q) / (sum w)^2
+            if (ov) ov[x] = acc.v[size_t(x)] * inv * inv;
+        }
+    }
+}
+
+}  // namespace
+
+void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
+    const int width = ctx.extent.width, height = ctx.extent.height;
+    const ImageView& color = io.input("color");
+    const ImageView& depth = io.input("depth");
+    const ImageView& normal = io.input("normal");
+    const bool hasVar = io.hasInput("variance");
+    const ImageView* var = hasVar ? &io.input("variance") : nullptr;
+    const int32_t* ids = io.hasInput("objectId") ? io.input("objectId").ints() : nullptr;
+    const ImageView& outColor = io.output("color");
+    const ImageView* outVar = hasVar && io.hasOutput("variance") ? &io.output("variance") : nullptr;
+
+    auto lease = ScratchArena::acquire(kPlaneCount, ctx.extent.pixels());
+    float* P[kPlaneCount];
+    for (int k = 0; k < kPlaneCount; ++k) P[k] = lease[size_t(k)];
+
+    // Pass 1: sanitised copies and luminance (inputs may hold NaN/Inf; nothing below may).
+    // One plane per loop: two streams each, so every loop vectorises.
+    ctx.parallelRows(height, [&](int y0, int y1) {
+        for (int y = y0; y < y1; ++y) {
+            const size_t o = size_t(y) * size_t(width);
+            for (int c = 0; c < 3; ++c) {
+                copySanitized(color.row(c, y), P[R + c] + o, width,
+                              [](float v) { return px::sanitize(v); });
+                copySanitized(normal.row(c, y), P[NX + c] + o, width, px::sanitizeNormal);
+            }
+            copySanitized(depth.row(0, y), P[Z] + o, width, px::sanitizeDepth);
+            if (var)
+                copySanitized(var->row(0, y), P[VAR] + o, width,
+                              [](float v) { return px::sanitizePositive(v, 1e32f); });
+            lumaRow(P[R] + o, P[G] + o, P[B] + o, P[L] + o, width);
+        }
+    });
+    // Pass 2: depth gradient (edge-preserving one-sided differences) and the luminance weight's
+    // 1 / (sigma_l sqrt(g3x3(Var)) + eps) with a 3x3 Gaussian prefilter (SVGF section 4.4),
+    // renormalised at the image border.
+    const float sigmaL = s_.sigmaL, sigmaColor = s_.sigmaColor;
+    ctx.parallelRows(height, [&](int y0, int y1) {
+        static constexpr float g3[3] = {0.25f, 0.5f, 0.25f};
+        for (int y = y0; y < y1; ++y) {
+            const size_t o = size_t(y) * size_t(width);
+            const bool up = y > 0, down = y + 1 < height;
+            const float* z = P[Z] + o;
+            for (int x = 0; x < width; ++x) {
+                P[GX][o + x] = px::minAbsDiff(x > 0 ? z[x - 1] : 0.f, z[x],
+                                              x + 1 < width ? z[x + 1] : 0.f, x > 0, x + 1 < width);
+                P[GY][o + x] = px::minAbsDiff(up ? z[x - width] : 0.f, z[x],
+                                              down ? z[x + width] : 0.f, up, down);
+                if (!var) {
+                    P[INVL][o + x] = 1.f / (sigmaColor + kEpsL);
+                    continue;
+                }
+                float sum = 0.f, sumW = 0.f;
+                for (int j = -1; j <= 1; ++j) {
+                    const int yy = y + j;
+                    if (yy < 0 || yy >= height) continue;
+                    const float* vr = P[VAR] + size_t(yy) * size_t(width);
+                    for (int i = -1; i <= 1; ++i) {
+                        const int xx = x + i;
+                        if (xx < 0 || xx >= width) continue;
+                        const float gw = g3[i + 1] * g3[j + 1];
+                        sum += gw * vr[xx];
+                        sumW += gw;
+                    }
+                }
+                P[INVL][o + x] = 1.f / (sigmaL * std::sqrt(std::max(0.f, sum / sumW)) + kEpsL);
+            }
+        }
+    });
+    // Pass 3: the filter itself.
+    const bool useNormal = s_.sigmaN > 0.f;
+    const Settings s = s_;
+    ctx.parallelRows(height, [&](int y0, int y1) {
+        auto run = [&](auto id, auto nrm, auto v) {
+            filterRows<decltype(id)::value, decltype(nrm)::value, decltype(v)::value>(
+                y0, y1, width, height, s, P, ids, outColor, outVar);
+        };
+        using T = std::true_type;
+        using F = std::false_type;
+        const bool withVar = outVar != nullptr;
+        if (ids) {
+            if (useNormal)
+                withVar ? run(T{}, T{}, T{}) : run(T{}, T{}, F{});
+            else
+                withVar ? run(T{}, F{}, T{}) : run(T{}, F{}, F{});
+        } else {
+            if (useNormal)
+                withVar ? run(F{}, T{}, T{}) : run(F{}, T{}, F{});
+            else
+                withVar ? run(F{}, F{}, T{}) : run(F{}, F{}, F{});
+        }
+    });
+}

@@ -1,0 +1,20 @@
+#pragma once
+// One iteration of the edge-avoiding A-Trous wavelet filter of SVGF (Schied et al. 2017,
+// section 4.4, eq. 1-5). A graph chains instances with step 1, 2, 4, 8, 16.
+#include <kestrel/Kestrel.h>
+
+class ATrousPass final : public kestrel::Pass {
+public:
+    static kestrel::PassDesc describe();
+    explicit ATrousPass(const kestrel::ParamValues& p);
+    void resolve(kestrel::ResolveContext& rc) override;
+    void execute(kestrel::FrameContext& ctx, kestrel::PassIO& io) override;
+
+    struct Settings {
+        int step = 1;
+        float sigmaZ = 1.f, sigmaN = 128.f, sigmaL = 4.f, sigmaColor = 0.6f;
+    };
+
+private:
+    Settings s_;
+};
