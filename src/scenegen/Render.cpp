@@ -114,7 +114,7 @@ FrameAovs renderFrame(const SceneOptions& opt, int frame) {
             set3(f.albedo, k, sp.albedo);
             PathRadiance L;
             if (sp.albedo.x > 0.f || sp.albedo.y > 0.f || sp.albedo.z > 0.f) {
-                Rng rng(opt.seed, frame, uint32_t(k), 0, Stream::Noisy);
+                Rng rng(pixelKey(opt.seed, frame, uint32_t(k), Stream::Noisy), 0);
                 L = tracePath(cur, sp, opt.bounces - 1, rng);
             }
             set3(f.direct, k, L.direct);
@@ -152,8 +152,9 @@ std::vector<float> renderReference(const SceneOptions& opt, int frame) {
             const SurfacePoint sp = makeSurfacePoint(hit, p, d);
             V3 sum{0, 0, 0};
             if (sp.albedo.x > 0.f || sp.albedo.y > 0.f || sp.albedo.z > 0.f) {
+                const uint32_t key = pixelKey(opt.seed, frame, uint32_t(k), Stream::Reference);
                 for (int s = 0; s < spp; ++s) {
-                    Rng rng(opt.seed, frame, uint32_t(k), uint32_t(s), Stream::Reference);
+                    Rng rng(key, uint32_t(s));
                     const PathRadiance L = tracePath(cur, sp, opt.bounces - 1, rng);
                     sum += L.direct + L.indirect;
                 }

@@ -207,10 +207,10 @@ TEST(SceneGen, ReferenceIsTheExpectationOfTheOneSppFrames) {
     }
     const double relBias = std::fabs(meanNoisy - meanRef) / meanRef;
     const double zRms = std::sqrt(z2 / std::max(zCount, 1));
-    // Measured: image means differ by 0.12 %; per-pixel normalised error RMS 1.08 (an unbiased
-    // pair gives about 1, a little more with heavy-tailed pixels; a missing or doubled light
-    // term gives >> 1).
+    // Measured: image means differ by 0.06 %; per-pixel normalised error RMS 1.11 (an unbiased
+    // pair gives about 1, a little more with heavy-tailed pixels near the glowing sphere; a
+    // per-pixel bias of 10 % of the radiance would add about 0.3, a missing light term >> 1).
     EXPECT_LT(relBias, 0.01);
-    EXPECT_LT(zRms, 1.2);
+    EXPECT_LT(zRms, 1.3);
     EXPECT_GT(zRms, 0.85);
 }
