@@ -1,0 +1,27 @@
+#pragma once
+// ToneMap: linear HDR colour -> display-referred [0,1] colour, for previews and image metrics
+// (PSNR/SSIM on tone-mapped values, design.md section 5).
+#include <kestrel/Kestrel.h>
+
+namespace kestrel::passes {
+
+enum class ToneOperator { Reinhard, Aces, Clamp };
+
+/// Tone-maps one linear value already scaled by the exposure. Never returns NaN; result in [0,1].
+float toneMapValue(float x, ToneOperator op);
+/// sRGB opto-electronic transfer function (IEC 61966-2-1) of a value in [0,1].
+float srgbEncode(float x);
+
+class ToneMapPass final : public Pass {
+public:
+    static PassDesc describe();
+    explicit ToneMapPass(const ParamValues& params);
+    void execute(FrameContext& ctx, PassIO& io) override;
+
+private:
+    float scale_ = 1.f;  // 2^exposure
+    ToneOperator op_ = ToneOperator::Aces;
+    bool srgb_ = true;
+};
+
+}  // namespace kestrel::passes
