@@ -1,0 +1,54 @@
+#include "DemodulatePass.h"
+
+#include <kestrel/PixelMath.h>
+
+using namespace kestrel;
+
+PassDesc DemodulatePass::describe() {
+    PassDesc d("Demodulate",
+               "Divides the emission-free radiance by the albedo: illumination = (color - emission)"
+               " / max(albedo, albedoFloor). Identity when neither albedo nor emission is bound.");
+    d.input("color", Format::Float3, "noisy radiance")
+        .optionalInput("albedo", Format::Float3, "surface albedo to divide out")
+        .optionalInput("emission", Format::Float3, "emitted radiance to subtract first")
+        .output("illumination", Format::Float3, "demodulated illumination (finite)")
+        .paramFloat("albedoFloor", 1e-3, 0.0, 1.0,
+                    "lower bound of the albedo divisor (dark albedo would amplify noise)");
+    return d;
+}
+
+DemodulatePass::DemodulatePass(const ParamValues& p) : albedoFloor_(p.getFloat("albedoFloor")) {}
+
+void DemodulatePass::resolve(ResolveContext& rc) {
+    if (!rc.isBound("albedo") && !rc.isBound("emission")) {
+        rc.forward("illumination", "color");
+        rc.note("no albedo and no emission bound: illumination is the colour itself");
+    }
+}
+
+void DemodulatePass::execute(FrameContext& ctx, PassIO& io) {
+    const ImageView& color = io.input("color");
+    const ImageView* albedo = io.hasInput("albedo") ? &io.input("albedo") : nullptr;
+    const ImageView* emission = io.hasInput("emission") ? &io.input("emission") : nullptr;
+    const ImageView& out = io.output("illumination");
+    // A zero floor would divide by zero on black albedo: keep the divisor a normal float.
+    const float floor = std::max(albedoFloor_, 1e-8f);
+    const int w = ctx.extent.width;
+    ctx.parallelRows(ctx.extent.height, [&](int y0, int y1) {
+        for (int y = y0; y < y1; ++y)
+            for (int c = 0; c < 3; ++c) {
+                const float* src = color.row(c, y);
+                const float* a = albedo ? albedo->row(c, y) : nullptr;
+                const float* e = emission ? emission->row(c, y) : nullptr;
+                float* dst = out.row(c, y);
+                for (int x = 0; x < w; ++x) {
+                    float v = px::sanitize(src[x]);
+                    if (e) v -= px::sanitize(e[x]);
+                    // A NaN albedo gives max(NaN, floor) = floor (std::max keeps its first
+                    // argument when the comparison is false): sanitised explicitly anyway.
+                    if (a) v /= std::max(px::sanitizePositive(a[x], 1e30f), floor);
+                    dst[x] = px::sanitize(v);
+                }
+            }
+    });
+}

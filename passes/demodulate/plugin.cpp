@@ -1,0 +1,7 @@
+#include <kestrel/Plugin.h>
+
+#include "DemodulatePass.h"
+
+KESTREL_PLUGIN(r) {
+    r.add<DemodulatePass>();
+}

@@ -1,0 +1,55 @@
+#include "ModulatePass.h"
+
+#include <kestrel/PixelMath.h>
+
+using namespace kestrel;
+
+PassDesc ModulatePass::describe() {
+    PassDesc d("Modulate",
+               "Re-applies albedo and emission: color = illumination * max(albedo, albedoFloor) +"
+               " emission + base. Identity when nothing optional is bound.");
+    d.input("illumination", Format::Float3, "filtered demodulated illumination")
+        .optionalInput("albedo", Format::Float3, "surface albedo to multiply back")
+        .optionalInput("emission", Format::Float3, "emitted radiance to add back")
+        .optionalInput("base", Format::Float3, "radiance added on top (sums split components)")
+        .output("color", Format::Float3, "radiance")
+        .paramFloat("albedoFloor", 1e-3, 0.0, 1.0,
+                    "lower bound of the albedo factor (must match Demodulate's)");
+    return d;
+}
+
+ModulatePass::ModulatePass(const ParamValues& p) : albedoFloor_(p.getFloat("albedoFloor")) {}
+
+void ModulatePass::resolve(ResolveContext& rc) {
+    if (!rc.isBound("albedo") && !rc.isBound("emission") && !rc.isBound("base")) {
+        rc.forward("color", "illumination");
+        rc.note("no albedo, emission or base bound: color is the illumination itself");
+    }
+}
+
+void ModulatePass::execute(FrameContext& ctx, PassIO& io) {
+    const ImageView& illum = io.input("illumination");
+    const ImageView* albedo = io.hasInput("albedo") ? &io.input("albedo") : nullptr;
+    const ImageView* emission = io.hasInput("emission") ? &io.input("emission") : nullptr;
+    const ImageView* base = io.hasInput("base") ? &io.input("base") : nullptr;
+    const ImageView& out = io.output("color");
+    const float floor = std::max(albedoFloor_, 1e-8f);  // same divisor as Demodulate
+    const int w = ctx.extent.width;
+    ctx.parallelRows(ctx.extent.height, [&](int y0, int y1) {
+        for (int y = y0; y < y1; ++y)
+            for (int c = 0; c < 3; ++c) {
+                const float* src = illum.row(c, y);
+                const float* a = albedo ? albedo->row(c, y) : nullptr;
+                const float* e = emission ? emission->row(c, y) : nullptr;
+                const float* b = base ? base->row(c, y) : nullptr;
+                float* dst = out.row(c, y);
+                for (int x = 0; x < w; ++x) {
+                    float v = px::sanitize(src[x]);
+                    if (a) v *= std::max(px::sanitizePositive(a[x], 1e30f), floor);
+                    if (e) v += px::sanitize(e[x]);
+                    if (b) v += px::sanitize(b[x]);
+                    dst[x] = px::sanitize(v);
+                }
+            }
+    });
+}

@@ -1,0 +1,7 @@
+#include <kestrel/Plugin.h>
+
+#include "SelectPass.h"
+
+KESTREL_PLUGIN(r) {
+    r.add<SelectPass>();
+}
