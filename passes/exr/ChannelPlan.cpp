@@ -1,0 +1,315 @@
+#include "ChannelPlan.h"
+
+#include "kestrel/Conventions.h"
+#include "kestrel/Error.h"
+
+namespace kestrel::exr {
+
+const char* layoutName(Layout l) {
+    switch (l) {
+        case Layout::Canonical:
+            return "canonical";
+        case Layout::Blender:
+            return "blender";
+        case Layout::Games202:
+            return "games202";
+    }
+    return "?";
+}
+
+std::vector<ChannelRef> Recipe::channels() const {
+    std::vector<ChannelRef> out;
+    for (const auto& t : terms)
+        for (const auto& f : t)
+            for (const auto& c : f) out.push_back(c);
+    if (backgroundMask) out.push_back(*backgroundMask);
+    return out;
+}
+
+Recipe* Plan::find(const std::string& output) {
+    for (auto& r : recipes)
+        if (r.output == output) return &r;
+    return nullptr;
+}
+const Recipe* Plan::find(const std::string& output) const {
+    return const_cast<Plan*>(this)->find(output);
+}
+
+const std::vector<OutputSpec>& loaderOutputs() {
+    static const std::vector<OutputSpec> outputs = {
+        {"color", Format::Float3, 0.f, "noisy radiance, linear HDR"},
+        {"albedo", Format::Float3, 0.f, "surface albedo for demodulation"},
+        {"emission", Format::Float3, 0.f, "emitted radiance (incl. environment)"},
+        {"direct", Format::Float3, 0.f, "direct part of color (radiance)"},
+        {"indirect", Format::Float3, 0.f, "indirect part of color (radiance)"},
+        {"diffuse", Format::Float3, 0.f, "diffuse part of color (radiance)"},
+        {"diffuseAlbedo", Format::Float3, 0.f, "albedo of the diffuse part"},
+        {"specular", Format::Float3, 0.f, "specular/glossy part of color (radiance)"},
+        {"specularAlbedo", Format::Float3, 0.f, "albedo of the specular part"},
+        {"normal", Format::Float3, 0.f, "world-space unit shading normal, 0 on background"},
+        {"depth", Format::Float, kBackgroundDepth, "linear view depth, 1e10 on background"},
+        {"position", Format::Float3, 0.f, "world-space position"},
+        {"motion", Format::Float2, 0.f, "motion to the previous frame in pixels, y down"},
+        {"objectId", Format::Int32, float(kBackgroundId), "object id, -1 on background"},
+    };
+    return outputs;
+}
+
+namespace {
+
+const std::vector<std::vector<const char*>>& suffixSets(int n) {
+    static const std::vector<std::vector<const char*>> s1 = {{"Z"}, {"Y"}, {"R"},
+                                                             {"X"}, {"V"}, {"id"}};
+    static const std::vector<std::vector<const char*>> s2 = {
+        {"X", "Y"}, {"R", "G"}, {"U", "V"}, {"x", "y"}, {"u", "v"}};
+    static const std::vector<std::vector<const char*>> s3 = {
+        {"R", "G", "B"}, {"X", "Y", "Z"}, {"r", "g", "b"}, {"x", "y", "z"}};
+    static const std::vector<std::vector<const char*>> s4 = {{"R", "G", "B", "A"},
+                                                             {"X", "Y", "Z", "W"}};
+    return n == 1 ? s1 : n == 2 ? s2 : n == 3 ? s3 : s4;
+}
+
+/// The n channels of `layer` ("" = top level) present in `channels`, trying the usual component
+/// names; a one-channel group may also be a full channel name.
+std::optional<Factor> resolveGroup(const ChannelSets& files, const std::string& file,
+                                   const std::string& layer, int n) {
+    auto it = files.find(file);
+    if (it == files.end()) return std::nullopt;
+    const auto& ch = it->second;
+    if (n == 1 && !layer.empty() && ch.count(layer)) return Factor{{file, layer}};
+    std::string prefix = layer.empty() ? "" : layer + ".";
+    for (const auto& set : suffixSets(n)) {
+        Factor f;
+        for (const char* s : set)
+            if (ch.count(prefix + s)) f.push_back({file, prefix + s});
+        if (int(f.size()) == n) return f;
+    }
+    return std::nullopt;
+}
+
+std::string groupHint(const std::string& layer, int n) {
+    std::string p = layer.empty() ? "" : layer + ".";
+    if (n == 1) return p + "Z";
+    if (n == 2) return p + "X/Y";
+    return p + "R/G/B";
+}
+
+/// Builds recipes with a shared "missing channel" bookkeeping.
+struct Builder {
+    Plan plan;
+    const ChannelSets& files;
+    Builder(Layout l, const ChannelSets& f) : files(f) {
+        plan.layout = l;
+        for (const auto& o : loaderOutputs()) {
+            Recipe r;
+            r.output = o.name;
+            r.format = o.format;
+            r.fill = o.fill;
+            plan.recipes.push_back(r);
+        }
+    }
+    int width(const Recipe& r) const {
+        return r.format == Format::Int32 ? 1 : channelCount(r.format);
+    }
+
+    /// A group, or records the first missing one in `missing`.
+    std::optional<Factor> group(const std::string& file, const std::string& layer, int n,
+                                std::string& missing) {
+        auto g = resolveGroup(files, file, layer, n);
+        if (!g && missing.empty()) {
+            if (!files.count(file))
+                missing = (file.empty() ? "input" : file) + " file";
+            else
+                missing = (file.empty() ? "" : file + " file ") + "channel " + groupHint(layer, n);
+        }
+        return g;
+    }
+    /// out = sum of products of the given layers; absent (naming the first missing) otherwise.
+    void set(const std::string& output, const std::vector<std::vector<std::string>>& terms,
+             const std::string& file = {}) {
+        Recipe& r = *plan.find(output);
+        std::string missing;
+        r.terms.clear();
+        for (const auto& t : terms) {
+            Term term;
+            for (const auto& layer : t)
+                if (auto g = group(file, layer, width(r), missing)) term.push_back(*g);
+            r.terms.push_back(term);
+        }
+        describe(r, missing);
+    }
+    void describe(Recipe& r, const std::string& missing) {
+        if (!missing.empty()) {
+            r.absent = true;
+            r.terms.clear();
+            r.why = "layout " + std::string(layoutName(plan.layout)) + " has no " + missing;
+            return;
+        }
+        r.absent = r.terms.empty();
+        if (r.absent) {
+            r.why = "layout " + std::string(layoutName(plan.layout)) + " provides no " + r.output;
+            return;
+        }
+        std::string s;
+        for (const auto& t : r.terms) {
+            if (!s.empty()) s += " + ";
+            for (size_t i = 0; i < t.size(); ++i) {
+                if (i) s += "*";
+                std::string c = t[i].front().str();
+                auto dot = c.rfind('.');
+                s += t[i].size() > 1 && dot != std::string::npos ? c.substr(0, dot) : c;
+            }
+        }
+        r.why = s;
+    }
+    void absent(const std::string& output, const std::string& missing) {
+        describe(*plan.find(output), missing);
+    }
+};
+
+}  // namespace
+
+std::optional<std::string> blenderLayer(const std::set<std::string>& channels) {
+    const std::string tail = ".Combined.R";
+    for (const auto& c : channels)
+        if (c.size() > tail.size() && c.compare(c.size() - tail.size(), tail.size(), tail) == 0)
+            return c.substr(0, c.size() - tail.size());
+    return std::nullopt;
+}
+
+Plan planCanonical(const ChannelSets& files) {
+    Builder b(Layout::Canonical, files);
+    b.set("color", {{""}});
+    for (const auto& o : loaderOutputs())
+        if (std::string(o.name) != "color") {
+            if (std::string(o.name) == "objectId") {
+                // "objectId.id" (the documented name) or any single channel of the layer.
+                b.set(o.name, {{"objectId.id"}});
+                if (b.plan.find("objectId")->absent) b.set(o.name, {{"objectId"}});
+            } else {
+                b.set(o.name, {{o.name}});
+            }
+        }
+    return b.plan;
+}
+
+Plan planBlender(const ChannelSets& files, const std::string& L) {
+    Builder b(Layout::Blender, files);
+    auto has = [&](const std::string& pass) {
+        return resolveGroup(files, "", L + "." + pass, 3).has_value();
+    };
+    auto P = [&](const char* pass) { return L + "." + pass; };
+    // Light passes are divided by their colour pass (data/README.md):
+    // Combined = (DiffDir + DiffInd)*DiffCol + (GlossDir + GlossInd)*GlossCol + Emit + Env.
+    b.set("color", {{P("Combined")}});
+    b.set("albedo", {{P("DiffCol")}});
+    std::vector<std::vector<std::string>> emission;
+    if (has("Emit")) emission.push_back({P("Emit")});
+    if (has("Env")) emission.push_back({P("Env")});
+    if (emission.empty())
+        b.absent("emission", "channel " + P("Emit") + ".R/G/B (nor " + P("Env") + ")");
+    else
+        b.set("emission", emission);
+    for (const char* part : {"Dir", "Ind"}) {
+        std::vector<std::vector<std::string>> terms = {{P("Diff") + part, P("DiffCol")},
+                                                       {P("Gloss") + part, P("GlossCol")}};
+        // Transmission and volume light add to Combined when the scene enables those passes.
+        if (has(std::string("Trans") + part) && has("TransCol"))
+            terms.push_back({P("Trans") + part, P("TransCol")});
+        if (has(std::string("Volume") + part)) terms.push_back({P("Volume") + part});
+        b.set(std::string(part) == "Dir" ? "direct" : "indirect", terms);
+    }
+    b.set("diffuse", {{P("DiffDir"), P("DiffCol")}, {P("DiffInd"), P("DiffCol")}});
+    b.set("diffuseAlbedo", {{P("DiffCol")}});
+    b.set("specular", {{P("GlossDir"), P("GlossCol")}, {P("GlossInd"), P("GlossCol")}});
+    b.set("specularAlbedo", {{P("GlossCol")}});
+    b.set("normal", {{P("Normal")}});
+    b.set("depth", {{P("Depth")}});  // planar depth, 1e10 on background already
+    b.set("position", {{P("Position")}});
+    b.set("motion", {{P("Vector")}});
+    b.plan.find("motion")->scale[1] = -1.f;  // Blender's Vector y points up the image
+    b.set("objectId", {{P("IndexOB")}});
+    b.plan.find("objectId")->idRule = IdRule::BlenderZeroIsBackground;
+    return b.plan;
+}
+
+Plan planGames202(const ChannelSets& files) {
+    Builder b(Layout::Games202, files);
+    b.set("color", {{""}}, "beauty");
+    b.set("normal", {{""}}, "normal");
+    b.set("position", {{""}}, "position");
+    b.set("depth", {{"Y"}}, "depth");
+    b.set("objectId", {{"Y"}}, "ID");
+    Recipe& depth = *b.plan.find("depth");
+    // Depth is 0 on the background; the ID buffer (-1 there) marks it (data/README.md).
+    if (!depth.absent && resolveGroup(files, "ID", "Y", 1))
+        depth.backgroundMask = ChannelRef{"ID", "Y"};
+    for (const char* o : {"albedo", "emission", "direct", "indirect", "diffuse", "diffuseAlbedo",
+                          "specular", "specularAlbedo", "motion"})
+        b.absent(o,
+                 std::string("buffer for ") + o + " (it has beauty, normal, position, depth, ID)");
+    return b.plan;
+}
+
+void applyChannelOverrides(Plan& plan, const std::string& spec, const ChannelSets& files) {
+    size_t start = 0;
+    while (start < spec.size()) {
+        size_t comma = spec.find(',', start);
+        std::string item =
+            spec.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+        start = comma == std::string::npos ? spec.size() : comma + 1;
+        if (item.empty()) continue;
+        auto bad = [&](const std::string& why) {
+            return Error("channels: '" + item + "': " + why +
+                         " (expected output=Layer[*Layer][+...], e.g. albedo=ViewLayer.DiffCol)");
+        };
+        auto eq = item.find('=');
+        if (eq == std::string::npos) throw bad("missing '='");
+        std::string out = item.substr(0, eq), expr = item.substr(eq + 1);
+        Recipe* r = plan.find(out);
+        if (!r) throw bad("no loader output named '" + out + "'");
+        int n = r->format == Format::Int32 ? 1 : channelCount(r->format);
+        r->terms.clear();
+        r->backgroundMask.reset();
+        r->scale[0] = r->scale[1] = r->scale[2] = r->scale[3] = 1.f;
+        if (expr.empty()) {
+            r->absent = true;
+            r->why = "the channels parameter leaves it out";
+            continue;
+        }
+        size_t ts = 0;
+        while (ts <= expr.size()) {
+            size_t plus = expr.find('+', ts);
+            std::string term =
+                expr.substr(ts, plus == std::string::npos ? std::string::npos : plus - ts);
+            Term t;
+            size_t fs = 0;
+            while (fs <= term.size()) {
+                size_t star = term.find('*', fs);
+                std::string g =
+                    term.substr(fs, star == std::string::npos ? std::string::npos : star - fs);
+                std::string file;
+                if (auto colon = g.find(':'); colon != std::string::npos) {
+                    file = g.substr(0, colon);
+                    g = g.substr(colon + 1);
+                }
+                if (g.empty()) throw bad("empty channel group");
+                auto f = resolveGroup(files, file, g, n);
+                if (!f)
+                    throw bad("the file has no channel group '" + g + "' with " +
+                              std::to_string(n) + " channel(s) (tried " + groupHint(g, n) +
+                              ", ...)");
+                t.push_back(*f);
+                if (star == std::string::npos) break;
+                fs = star + 1;
+            }
+            r->terms.push_back(t);
+            if (plus == std::string::npos) break;
+            ts = plus + 1;
+        }
+        r->absent = false;
+        r->why = expr + " (channels parameter)";
+    }
+}
+
+}  // namespace kestrel::exr

@@ -1,0 +1,80 @@
+#pragma once
+// How each loader output is computed from file channels: a sum of products of channel groups
+// ("recipes"), plus a few convention fixes. Layout-specific code (LayoutPlans.cpp) builds a plan
+// from the channel names of the first frame; ExrLoader executes it.
+#include <map>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "kestrel/Format.h"
+
+namespace kestrel::exr {
+
+enum class Layout { Canonical, Blender, Games202 };
+const char* layoutName(Layout l);
+
+/// One channel of one file. `file` is a role ("" for single-file layouts; beauty, normal, ...
+/// for GAMES202).
+struct ChannelRef {
+    std::string file;
+    std::string name;
+    auto operator<=>(const ChannelRef&) const = default;
+    std::string str() const { return file.empty() ? name : file + ":" + name; }
+};
+
+/// A factor holds one channel per output channel (3 for Float3).
+using Factor = std::vector<ChannelRef>;
+/// A term multiplies its factors component-wise; the output sums its terms.
+using Term = std::vector<Factor>;
+
+enum class IdRule { Round, BlenderZeroIsBackground };
+
+struct Recipe {
+    std::string output;
+    Format format = Format::Float3;
+    std::vector<Term> terms;
+    float scale[4] = {1, 1, 1, 1};  ///< per channel after summing (Blender motion y: -1)
+    float fill = 0.f;               ///< where the file has no pixel (outside the data window)
+    std::optional<ChannelRef> backgroundMask;  ///< GAMES202 depth: where this < -0.5, depth = 1e10
+    IdRule idRule = IdRule::Round;             ///< Int32 outputs
+    bool absent = false;
+    std::string why;  ///< absent: which channel is missing; present: what is read (for notes)
+
+    bool isDirect() const { return terms.size() == 1 && terms[0].size() == 1; }
+    std::vector<ChannelRef> channels() const;  ///< every channel read (mask included)
+};
+
+struct Plan {
+    Layout layout = Layout::Canonical;
+    std::vector<Recipe> recipes;  ///< one per loader output, in declaration order
+    Recipe* find(const std::string& output);
+    const Recipe* find(const std::string& output) const;
+};
+
+/// Channel names per file role.
+using ChannelSets = std::map<std::string, std::set<std::string>>;
+
+/// The loader's outputs (name, format), in declaration order.
+struct OutputSpec {
+    const char* name;
+    Format format;
+    float fill;
+    const char* description;
+};
+const std::vector<OutputSpec>& loaderOutputs();
+
+Plan planCanonical(const ChannelSets& files);
+/// `layer`: the Blender view layer ("ViewLayer"), found by blenderLayer().
+Plan planBlender(const ChannelSets& files, const std::string& layer);
+Plan planGames202(const ChannelSets& files);
+/// The view layer holding "<layer>.Combined.R", or nullopt.
+std::optional<std::string> blenderLayer(const std::set<std::string>& channels);
+
+/// Applies the `channels` parameter: "out=EXPR,out=EXPR,..." with EXPR a sum ('+') of products
+/// ('*') of channel groups; a group is a layer ("ViewLayer.DiffCol": its R,G,B or X,Y,Z...) or a
+/// full channel name; an empty EXPR marks the output absent. Throws Error naming the item.
+void applyChannelOverrides(Plan& plan, const std::string& spec, const ChannelSets& files);
+
+}  // namespace kestrel::exr

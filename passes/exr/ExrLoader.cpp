@@ -1,0 +1,487 @@
+#include "ExrLoader.h"
+
+#include <OpenEXR/ImfAttribute.h>
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfMatrixAttribute.h>
+#include <OpenEXR/ImfStringAttribute.h>
+#include <OpenEXR/ImfThreading.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <map>
+
+namespace kestrel::exr {
+
+namespace fs = std::filesystem;
+
+namespace {
+const char* const kGames202Roles[] = {"beauty", "normal", "position", "depth", "ID"};
+
+std::string parentDir(const std::string& p) {
+    auto slash = p.rfind('/');
+    return slash == std::string::npos ? std::string() : p.substr(0, slash + 1);
+}
+
+std::set<std::string> channelNames(const Imf::Header& h) {
+    std::set<std::string> names;
+    for (auto it = h.channels().begin(); it != h.channels().end(); ++it) names.insert(it.name());
+    return names;
+}
+
+Mat4 toMat4(const Imath::M44f& x) {
+    Mat4 m;
+    for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c) m.m[r][c] = x[r][c];
+    return m;
+}
+
+float* asFloats(const ImageView& v, int c) {
+    return v.planes[size_t(c)];
+}
+
+void fillPlane(float* p, size_t n, float value) {
+    std::fill(p, p + n, value);
+}
+
+/// Object ids arrive as floats; stored in place as int32 (the plane's own memory).
+void floatsToIds(float* plane, size_t n, IdRule rule) {
+    for (size_t i = 0; i < n; ++i) {
+        float v;
+        std::memcpy(&v, plane + i, 4);
+        int32_t id = kBackgroundId;
+        if (rule == IdRule::BlenderZeroIsBackground) {
+            if (v >= 0.5f && v < 2.1e9f) id = int32_t(std::lround(v));  // IndexOB: 0 = background
+        } else if (v > -0.5f && v < 2.1e9f) {
+            id = int32_t(std::lround(v));
+        }
+        std::memcpy(plane + i, &id, 4);
+    }
+}
+}  // namespace
+
+PassDesc ExrLoader::describe() {
+    PassDesc d(
+        "ExrLoader",
+        "Reads AOV frames from EXR files (canonical, Blender multilayer or GAMES202 layout); "
+        "only channels a consumer needs are decoded");
+    for (const auto& o : loaderOutputs()) d.output(o.name, o.format, o.description);
+    d.paramString("path", "",
+                  "frame pattern (frame_####.exr, %04d, beauty_%d.exr) or a GAMES202 folder");
+    d.paramEnum("layout", "auto", {"auto", "canonical", "blender", "games202"},
+                "file layout; auto: kestrel.layout attribute, Blender channels, beauty_*.exr");
+    d.paramString("camera", "",
+                  "Blender camera.json; empty: look beside the frames, then one folder up");
+    d.paramString("channels", "",
+                  "override output channels: out=Layer[*Layer][+...],... e.g. "
+                  "albedo=ViewLayer.DiffCol (empty expression: leave the output out)");
+    d.paramInt("maxPixels", int64_t(1) << 27, 1, int64_t(1) << 40,
+               "largest data or display window accepted (pixels), checked before allocating");
+    return d;
+}
+
+ExrLoader::ExrLoader(const ParamValues& p)
+    : path_(p.getString("path")),
+      layoutParam_(p.getString("layout")),
+      cameraParam_(p.getString("camera")),
+      channelsParam_(p.getString("channels")),
+      maxPixels_(p.getInt("maxPixels")) {}
+
+ExrLoader::~ExrLoader() = default;
+
+std::string ExrLoader::filePath(const std::string& role, int64_t frame) const {
+    if (plan_.layout != Layout::Games202 || role.empty()) return pattern_->expand(frame);
+    return FramePattern(games202Dir_ + role + games202Tail_).expand(frame);
+}
+
+std::vector<int64_t> ExrLoader::availableFrames() const {
+    if (pattern_) return pattern_->findFrames();
+    if (path_.empty()) return {};
+    std::string p = path_;
+    std::error_code ec;
+    if (fs::is_directory(p, ec)) p = (fs::path(p) / "beauty_%d.exr").string();
+    try {
+        return FramePattern(p).findFrames();
+    } catch (const Error&) {
+        return {};
+    }
+}
+
+void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
+    if (planned_) return;
+    if (path_.empty()) throw Error("ExrLoader: parameter 'path' is empty: give a frame pattern");
+    auto note = [&](std::string s) {
+        if (notes) notes->push_back(std::move(s));
+    };
+
+    // Which files: a GAMES202 folder or beauty_ pattern, else one multi-channel file per frame.
+    std::string pattern = path_;
+    std::error_code ec;
+    bool games202 = layoutParam_ == "games202";
+    if (fs::is_directory(pattern, ec)) {
+        std::string dir = pattern.back() == '/' ? pattern : pattern + "/";
+        if (layoutParam_ != "auto" && layoutParam_ != "games202")
+            throw Error("path " + path_ + " is a folder: give a frame pattern such as " + dir +
+                        "frame_####.exr");
+        pattern = dir + "beauty_%d.exr";
+        games202 = true;
+    }
+    pattern_ = std::make_unique<FramePattern>(pattern);
+    std::string file = pattern.substr(parentDir(pattern).size());
+    if (layoutParam_ == "auto" && file.rfind("beauty", 0) == 0) games202 = true;
+    if (games202) {
+        if (file.rfind("beauty", 0) != 0)
+            throw Error("layout games202: path " + path_ +
+                        " must be a folder or name the beauty files (dir/beauty_%d.exr)");
+        games202Dir_ = parentDir(pattern);
+        games202Tail_ = file.substr(6);
+    }
+
+    // First frame: the requested one, else the first found on disk.
+    int64_t first = frame;
+    std::string firstPath = pattern_->expand(first);
+    if (!fs::exists(firstPath, ec)) {
+        auto found = pattern_->findFrames();
+        if (found.empty())
+            throw Error("no input frame: " + firstPath + " does not exist and nothing matches " +
+                        pattern);
+        note("frame " + std::to_string(first) + " missing; layout probed on frame " +
+             std::to_string(found.front()));
+        first = found.front();
+        firstPath = pattern_->expand(first);
+    }
+
+    ChannelSets sets;
+    if (games202) {
+        plan_.layout = Layout::Games202;
+        for (const char* role : kGames202Roles) {
+            std::string p = filePath(role, first);
+            if (!fs::exists(p, ec)) continue;
+            try {
+                ExrInput in(p, maxPixels_);
+                sets[role] = channelNames(in.header());
+            } catch (const Error& e) {
+                throw Error(p + ": " + e.what());
+            }
+        }
+        if (!sets.count("beauty")) throw Error(firstPath + ": file not found");
+        plan_ = planGames202(sets);
+        std::string mat = filePath("matrix", first);
+        mat = mat.substr(0, mat.size() - 4) + ".mat";
+        games202Matrices_ = games202Tail_.size() > 4 &&
+                            games202Tail_.compare(games202Tail_.size() - 4, 4, ".exr") == 0 &&
+                            fs::exists(mat, ec);
+        note(games202Matrices_ ? "camera and object matrices from " + mat
+                               : "no matrix file " + mat + ": no camera matrices");
+    } else {
+        std::unique_ptr<ExrInput> in;
+        try {
+            in = std::make_unique<ExrInput>(firstPath, maxPixels_);
+        } catch (const Error& e) {
+            throw Error(firstPath + ": " + e.what());
+        }
+        sets[""] = channelNames(in->header());
+        auto layer = blenderLayer(sets[""]);
+        const auto* tag = in->header().findTypedAttribute<Imf::StringAttribute>("kestrel.layout");
+        Layout layout = Layout::Canonical;
+        if (layoutParam_ == "blender" || (layoutParam_ == "auto" && !tag && layer))
+            layout = Layout::Blender;
+        if (layout == Layout::Blender) {
+            if (!layer)
+                throw Error("layout blender: " + firstPath +
+                            " has no '<layer>.Combined.R' channel (not a Cycles multilayer EXR)");
+            plan_ = planBlender(sets, *layer);
+            note("Blender view layer '" + *layer + "'");
+            // camera.json: the parameter, else beside the frames, else one folder up.
+            fs::path cam = cameraParam_;
+            if (cam.empty()) {
+                fs::path dir = fs::path(firstPath).parent_path();
+                if (dir.empty()) dir = ".";
+                for (fs::path c : {dir / "camera.json", dir.parent_path() / "camera.json"})
+                    if (fs::exists(c, ec)) {
+                        cam = c;
+                        break;
+                    }
+            } else if (!fs::exists(cam, ec)) {
+                throw Error("camera file " + cam.string() + " not found");
+            }
+            if (!cam.empty()) {
+                cameras_ = std::make_unique<BlenderCameras>(cam);
+                note("cameras from " + cam.string());
+            } else {
+                note("no camera.json beside the frames or one folder up: no camera matrices");
+            }
+        } else {
+            plan_ = planCanonical(sets);
+            if (!tag)
+                note("no kestrel.layout attribute: reading canonical channel names");
+            else if (tag->value() != "canonical")
+                throw Error(firstPath + ": kestrel.layout is '" + tag->value() +
+                            "', this loader reads 'canonical'");
+        }
+    }
+    if (!channelsParam_.empty()) applyChannelOverrides(plan_, channelsParam_, sets);
+    note(std::string("layout ") + layoutName(plan_.layout) + " (" + firstPath + ")");
+    for (const auto& r : plan_.recipes)
+        if (!r.absent) note(r.output + " = " + r.why);
+    planned_ = true;
+}
+
+void ExrLoader::resolve(ResolveContext& rc) {
+    std::vector<std::string> notes;
+    ensurePlan(rc.firstFrame(), &notes);
+    for (auto& n : notes) rc.note(std::move(n));
+    for (const auto& r : plan_.recipes)
+        if (r.absent) rc.setAbsent(r.output, r.why);
+}
+
+ExrInput& ExrLoader::openRole(const std::string& role, int64_t frame) {
+    for (auto& [r, in] : open_)
+        if (r == role) return *in;
+    std::string p = filePath(role, frame);
+    try {
+        auto in = std::make_unique<ExrInput>(p, maxPixels_);
+        if (!open_.empty() && in->displayWindow() != display_)
+            throw Error("display window differs from the frame's " + open_.front().second->path());
+        open_.emplace_back(role, std::move(in));
+    } catch (const Error& e) {
+        throw FrameError("frame " + std::to_string(frame) + ": " + p + ": " + e.what());
+    }
+    return *open_.back().second;
+}
+
+void ExrLoader::fillScene(int64_t frame, SceneData& scene) {
+    scene = SceneData{};
+    if (plan_.layout == Layout::Blender && cameras_) {
+        if (!cameras_->fill(frame, scene) && !logged_)
+            spdlog::warn("ExrLoader: {} lists no frame {}; no camera matrices",
+                         cameras_->path().string(), frame);
+    } else if (plan_.layout == Layout::Games202 && games202Matrices_) {
+        std::string mat = filePath("matrix", frame);
+        mat = mat.substr(0, mat.size() - 4) + ".mat";
+        try {
+            readGames202Matrices(mat, scene);
+        } catch (const Error& e) {
+            throw FrameError("frame " + std::to_string(frame) + ": " + mat + ": " + e.what());
+        }
+    } else if (plan_.layout == Layout::Canonical) {
+        const Imf::Header& h = open_.front().second->header();
+        if (auto* a = h.findTypedAttribute<Imf::M44fAttribute>("kestrel.worldToPixel")) {
+            scene.hasCamera = true;
+            scene.worldToPixel = toMat4(a->value());
+        }
+        if (auto* a = h.findTypedAttribute<Imf::M44fAttribute>("kestrel.worldToCamera"))
+            scene.worldToCamera = toMat4(a->value());
+        const std::string prefix = "kestrel.objectToWorld.";
+        for (auto it = h.begin(); it != h.end(); ++it) {
+            std::string name = it.name();
+            if (name.rfind(prefix, 0) != 0) continue;
+            auto* a = dynamic_cast<const Imf::M44fAttribute*>(&it.attribute());
+            if (!a) continue;
+            try {
+                scene.objectToWorld[std::stoi(name.substr(prefix.size()))] = toMat4(a->value());
+            } catch (const std::exception&) {
+                // a non-numeric suffix is someone else's attribute
+            }
+        }
+    }
+}
+
+std::optional<Extent> ExrLoader::beginFrame(FrameContext& ctx) {
+    ensurePlan(ctx.frameNumber, nullptr);
+    // OpenEXR decodes line blocks on its own global pool (the engine's thread count).
+    int threads = ctx.parallel ? ctx.parallel->threadCount() : 1;
+    if (Imf::globalThreadCount() < threads) Imf::setGlobalThreadCount(threads);
+
+    frame_ = ctx.frameNumber;
+    open_.clear();
+    std::string primary = plan_.layout == Layout::Games202 ? "beauty" : "";
+    ExrInput& in = openRole(primary, frame_);
+    display_ = in.displayWindow();
+    // Channels the first frame had must still be there (a half-written or foreign file).
+    const Imf::ChannelList& list = in.header().channels();
+    for (const auto& r : plan_.recipes) {
+        if (r.absent) continue;
+        for (const auto& c : r.channels())
+            if (c.file == primary && !list.findChannel(c.name))
+                throw FrameError("frame " + std::to_string(frame_) + ": " + in.path() +
+                                 ": no channel " + c.name + " (the first frame had it)");
+    }
+    if (ctx.scene) fillScene(frame_, *ctx.scene);
+    return Extent{int(display_.width()), int(display_.height())};
+}
+
+void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
+    const int W = int(display_.width()), H = int(display_.height());
+    const size_t N = size_t(W) * size_t(H);
+
+    // Where each file channel goes: straight into an output plane when the output is that
+    // channel alone, else into a scratch plane feeding sums and products.
+    std::map<ChannelRef, float*> dest;
+    std::map<ChannelRef, float> fills;
+    std::vector<std::pair<float*, ChannelRef>> copies;  // a channel wanted in two output planes
+    std::vector<const Recipe*> composite, active;
+    for (const auto& r : plan_.recipes) {
+        if (!io.hasOutput(r.output)) continue;
+        const ImageView& out = io.output(r.output);
+        if (r.absent) {  // only in unit tests: the engine never binds an absent output
+            for (int c = 0; c < std::max(1, out.channels()); ++c)
+                fillPlane(asFloats(out, c), N, r.fill);
+            if (r.format == Format::Int32) floatsToIds(asFloats(out, 0), N, IdRule::Round);
+            continue;
+        }
+        active.push_back(&r);
+        if (r.isDirect()) {
+            const Factor& f = r.terms[0][0];
+            for (size_t c = 0; c < f.size(); ++c) {
+                if (dest.count(f[c])) {
+                    copies.emplace_back(asFloats(out, int(c)), f[c]);
+                } else {
+                    dest[f[c]] = asFloats(out, int(c));
+                    fills[f[c]] = r.fill;
+                }
+            }
+        } else {
+            composite.push_back(&r);
+        }
+    }
+    std::vector<ChannelRef> scratchRefs;
+    for (const Recipe* r : active) {
+        for (const auto& c : r->channels())
+            if (!dest.count(c) &&
+                std::find(scratchRefs.begin(), scratchRefs.end(), c) == scratchRefs.end())
+                scratchRefs.push_back(c);
+    }
+    if (scratchPixels_ != N || scratch_.size() < scratchRefs.size()) {
+        if (scratchPixels_ != N) scratch_.clear();
+        while (scratch_.size() < scratchRefs.size()) scratch_.push_back(allocatePlane(N));
+        scratchPixels_ = N;
+    }
+    for (size_t i = 0; i < scratchRefs.size(); ++i) {
+        dest[scratchRefs[i]] = scratch_[i].get();
+        const ChannelRef& mask = scratchRefs[i];
+        bool isMask = false;
+        for (const Recipe* r : active) isMask |= r->backgroundMask && *r->backgroundMask == mask;
+        fills[mask] = isMask ? float(kBackgroundId) : 0.f;
+    }
+
+    // Decode, file by file.
+    channelsRead_.clear();
+    std::map<std::string, std::vector<std::pair<std::string, float*>>> byFile;
+    for (const auto& [ref, plane] : dest) {
+        byFile[ref.file].emplace_back(ref.name, plane);
+        channelsRead_.push_back(ref.str());
+    }
+    size_t fileBytes = 0;
+    for (const auto& [role, chans] : byFile) {
+        ExrInput& in = openRole(role, frame_);
+        std::error_code ec;
+        fileBytes += size_t(fs::file_size(in.path(), ec));
+        const Box dw = in.dataWindow(), dp = display_;
+        const bool covers = dw.x0 <= dp.x0 && dw.y0 <= dp.y0 && dw.x1 >= dp.x1 && dw.y1 >= dp.y1;
+        const bool inside = dw.x0 >= dp.x0 && dw.y0 >= dp.y0 && dw.x1 <= dp.x1 && dw.y1 <= dp.y1;
+        if (!covers)
+            for (const auto& [name, plane] : chans) fillPlane(plane, N, fills[{role, name}]);
+        const int ix0 = std::max(dw.x0, dp.x0), ix1 = std::min(dw.x1, dp.x1);
+        const int iy0 = std::max(dw.y0, dp.y0), iy1 = std::min(dw.y1, dp.y1);
+        if (ix0 > ix1 || iy0 > iy1) continue;  // no overlap: fill values only
+        try {
+            Imf::FrameBuffer fb;
+            std::vector<float> clip;  // only when the data window pokes out of the display
+            const size_t dwW = size_t(dw.width()), rows = size_t(iy1 - iy0 + 1);
+            if (!inside) clip.resize(dwW * rows * chans.size());
+            for (size_t k = 0; k < chans.size(); ++k) {
+                // Slice base: the address pixel (0, 0) would have (OpenEXR's convention).
+                uintptr_t base;
+                size_t yStride;
+                if (inside) {
+                    int64_t origin = int64_t(dp.x0) + int64_t(dp.y0) * W;
+                    base = uintptr_t(chans[k].second) - uintptr_t(origin * 4);
+                    yStride = size_t(W) * 4;
+                } else {
+                    float* buf = clip.data() + k * dwW * rows;
+                    int64_t origin = int64_t(dw.x0) + int64_t(iy0) * int64_t(dwW);
+                    base = uintptr_t(buf) - uintptr_t(origin * 4);
+                    yStride = dwW * 4;
+                }
+                fb.insert(chans[k].first, Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(base), 4,
+                                                     yStride, 1, 1, fills[{role, chans[k].first}]));
+            }
+            in.file().setFrameBuffer(fb);
+            in.file().readPixels(iy0, iy1);
+            if (!inside)
+                for (size_t k = 0; k < chans.size(); ++k)
+                    for (int y = iy0; y <= iy1; ++y) {
+                        const float* src = clip.data() + k * dwW * rows + size_t(y - iy0) * dwW +
+                                           size_t(ix0 - dw.x0);
+                        float* dst =
+                            chans[k].second + size_t(y - dp.y0) * size_t(W) + size_t(ix0 - dp.x0);
+                        std::copy(src, src + (ix1 - ix0 + 1), dst);
+                    }
+        } catch (const std::exception& e) {
+            throw FrameError("frame " + std::to_string(frame_) + ": " + in.path() +
+                             ": cannot read pixels (corrupt or truncated): " + e.what());
+        }
+    }
+    for (const auto& [dst, ref] : copies) std::copy(dest[ref], dest[ref] + N, dst);
+
+    // Sums of products (Blender light passes times their colour passes).
+    for (const Recipe* r : composite) {
+        const ImageView& out = io.output(r->output);
+        const int C = r->format == Format::Int32 ? 1 : channelCount(r->format);
+        ctx.parallelRows(H, [&](int y0, int y1) {
+            const size_t b = size_t(y0) * size_t(W), e = size_t(y1) * size_t(W);
+            for (int c = 0; c < C; ++c) {
+                float* o = asFloats(out, c);
+                std::fill(o + b, o + e, 0.f);
+                for (const Term& t : r->terms) {
+                    const float* f0 = dest[t[0][size_t(c)]];
+                    if (t.size() == 1) {
+                        for (size_t i = b; i < e; ++i) o[i] += f0[i];
+                    } else {
+                        const float* f1 = dest[t[1][size_t(c)]];
+                        for (size_t i = b; i < e; ++i) {
+                            float v = f0[i] * f1[i];
+                            for (size_t k = 2; k < t.size(); ++k) v *= dest[t[k][size_t(c)]][i];
+                            o[i] += v;
+                        }
+                    }
+                }
+            }
+        });
+    }
+    // Convention fixes, in place: scales (motion y), background depth, then ids to int32.
+    for (const Recipe* r : active) {
+        const ImageView& out = io.output(r->output);
+        for (int c = 0; c < channelCount(r->format); ++c)
+            if (r->scale[c] != 1.f && r->format != Format::Int32) {
+                float* o = asFloats(out, c);
+                const float s = r->scale[c];
+                for (size_t i = 0; i < N; ++i) o[i] *= s;
+            }
+        if (r->backgroundMask) {
+            const float* m = dest[*r->backgroundMask];
+            float* o = asFloats(out, 0);
+            for (size_t i = 0; i < N; ++i)
+                if (!(m[i] > -0.5f)) o[i] = kBackgroundDepth;
+        }
+    }
+    for (const Recipe* r : active)
+        if (r->format == Format::Int32)
+            floatsToIds(asFloats(io.output(r->output), 0), N, r->idRule);
+
+    if (!logged_) {
+        std::string list;
+        for (const auto& c : channelsRead_) list += (list.empty() ? "" : ", ") + c;
+        spdlog::info(
+            "ExrLoader: reading {} channels per frame ({:.2f} MB decoded from {:.2f} MB of "
+            "files): {}",
+            channelsRead_.size(), double(channelsRead_.size() * N * 4) / 1e6,
+            double(fileBytes) / 1e6, list);
+        logged_ = true;
+    }
+}
+
+}  // namespace kestrel::exr

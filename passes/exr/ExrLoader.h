@@ -1,0 +1,66 @@
+#pragma once
+// ExrLoader: the source pass. Reads one frame's AOVs from EXR files in one of three layouts
+// (canonical, Blender Cycles multilayer, GAMES202 homework), converting each to the in-memory
+// conventions of kestrel/Conventions.h, and reads only the channels a consumer needs.
+// Parameters and layouts: docs/layouts.md.
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "ChannelPlan.h"
+#include "ExrInput.h"
+#include "SceneMatrices.h"
+#include "kestrel/FramePattern.h"
+#include "kestrel/Kestrel.h"
+
+namespace kestrel::exr {
+
+class ExrLoader : public Pass {
+public:
+    static PassDesc describe();
+    explicit ExrLoader(const ParamValues& params);
+    ~ExrLoader() override;
+
+    void resolve(ResolveContext& rc) override;
+    std::optional<Extent> beginFrame(FrameContext& ctx) override;
+    void execute(FrameContext& ctx, PassIO& io) override;
+    std::vector<int64_t> availableFrames() const override;
+
+    /// For tests and logs: the channels the last execute read ("role:name" for GAMES202).
+    const std::vector<std::string>& channelsRead() const { return channelsRead_; }
+    /// The plan in use (after resolve or the first beginFrame).
+    const Plan& plan() const { return plan_; }
+
+private:
+    struct Sources;  // GAMES202 file roles or the single file
+    void ensurePlan(int64_t frame, std::vector<std::string>* notes);
+    std::string filePath(const std::string& role, int64_t frame) const;
+    ExrInput& openRole(const std::string& role, int64_t frame);
+    void fillScene(int64_t frame, SceneData& scene);
+
+    // parameters
+    std::string path_, layoutParam_, cameraParam_, channelsParam_;
+    int64_t maxPixels_;
+
+    // compile-time state (from the first frame; immutable while frames run)
+    bool planned_ = false;
+    Plan plan_;
+    std::unique_ptr<FramePattern> pattern_;   // the single file, or GAMES202's beauty file
+    std::string games202Dir_, games202Tail_;  // "dir/" and "_%d.exr" around the role name
+    std::unique_ptr<BlenderCameras> cameras_;
+    bool games202Matrices_ = false;
+
+    // this frame's open files (headers read in beginFrame / on first use)
+    int64_t frame_ = 0;
+    std::vector<std::pair<std::string, std::unique_ptr<ExrInput>>> open_;
+    Box display_;
+
+    // private scratch: planes for channels that feed sums and products
+    std::vector<PlaneStorage> scratch_;
+    size_t scratchPixels_ = 0;
+    std::vector<std::string> channelsRead_;
+    bool logged_ = false;
+};
+
+}  // namespace kestrel::exr

@@ -1,0 +1,218 @@
+#include "ExrWriter.h"
+
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfOutputFile.h>
+#include <OpenEXR/ImfStringAttribute.h>
+#include <OpenEXR/ImfThreading.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <limits>
+
+namespace kestrel::exr {
+
+namespace fs = std::filesystem;
+
+namespace {
+const std::vector<std::string> kCompressions = {"none",  "rle", "zips", "zip",  "piz",
+                                                "pxr24", "b44", "b44a", "dwaa", "dwab"};
+Imf::Compression compressionOf(const std::string& s) {
+    static const Imf::Compression values[] = {
+        Imf::NO_COMPRESSION,   Imf::RLE_COMPRESSION,   Imf::ZIPS_COMPRESSION, Imf::ZIP_COMPRESSION,
+        Imf::PIZ_COMPRESSION,  Imf::PXR24_COMPRESSION, Imf::B44_COMPRESSION,  Imf::B44A_COMPRESSION,
+        Imf::DWAA_COMPRESSION, Imf::DWAB_COMPRESSION};
+    for (size_t i = 0; i < kCompressions.size(); ++i)
+        if (kCompressions[i] == s) return values[i];
+    return Imf::ZIP_COMPRESSION;
+}
+
+constexpr float kHalfMax = 65504.f;
+
+fs::path folderOf(const std::string& file) {
+    fs::path dir = fs::path(file).parent_path();
+    return dir.empty() ? fs::path(".") : dir;
+}
+
+/// A temporary name in the destination's folder (rename is atomic only within a file system).
+std::string tempName(const std::string& final) {
+    fs::path p(final);
+    return (folderOf(final) / ("." + p.filename().string() + ".tmp-" + std::to_string(::getpid())))
+        .string();
+}
+
+void ensureWritableFolder(const std::string& file) {
+    fs::path dir = folderOf(file);
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec) throw Error("cannot create output directory " + dir.string() + ": " + ec.message());
+    fs::path probe = dir / (".kestrel-write-test-" + std::to_string(::getpid()));
+    std::FILE* f = std::fopen(probe.c_str(), "wb");
+    if (!f)
+        throw Error("output directory " + dir.string() +
+                    " is not writable: " + std::strerror(errno));
+    std::fclose(f);
+    fs::remove(probe, ec);
+}
+}  // namespace
+
+PassDesc ExrWriter::describe() {
+    PassDesc d("ExrWriter",
+               "Writes each frame to an EXR file (atomically, with provenance) and optionally a "
+               "tone-mapped PNG preview");
+    d.input("color", Format::Any, "image to write (1-4 float channels as R,G,B,A; Int32 as id)");
+    d.paramString("path", "out/frame.####.exr", "output frame pattern (####, @, %04d)");
+    d.paramEnum("pixelType", "half", {"half", "float"},
+                "EXR pixel type of float channels (ids are always float)");
+    d.paramEnum("compression", "zip", kCompressions, "EXR compression");
+    d.paramString("preview", "", "PNG preview pattern (empty: no preview)");
+    d.paramFloat("exposure", 0.0, -20.0, 20.0, "preview exposure in stops");
+    d.paramEnum("tonemap", "aces", {"aces", "reinhard", "clamp"}, "preview tone curve");
+    d.sink = true;
+    return d;
+}
+
+ExrWriter::ExrWriter(const ParamValues& p)
+    : path_(p.getString("path")),
+      half_(p.getString("pixelType") == "half"),
+      compression_(p.getString("compression")),
+      exposure_(p.getFloat("exposure")) {
+    if (!p.getString("preview").empty())
+        preview_ = std::make_unique<FramePattern>(p.getString("preview"));
+    const std::string& tm = p.getString("tonemap");
+    toneMap_ = tm == "reinhard" ? ToneMap::Reinhard
+               : tm == "clamp"  ? ToneMap::Clamp
+                                : ToneMap::Aces;
+}
+
+void ExrWriter::beginRun(const RunContext& rc) {
+    warnedRange_ = warnedNaN_ = false;
+    ensureWritableFolder(path_.expand(rc.firstFrame));
+    if (preview_) ensureWritableFolder(preview_->expand(rc.firstFrame));
+}
+
+bool ExrWriter::frameWritten(int64_t frame) const {
+    std::error_code ec;
+    return fs::exists(path_.expand(frame), ec);
+}
+
+void ExrWriter::execute(FrameContext& ctx, PassIO& io) {
+    if (!ctx.writeOutputs) return;
+    const ImageView& img = io.input("color");
+    std::string file = path_.expand(ctx.frameNumber);
+    writeExr(img, file, ctx);
+    if (preview_) {
+        std::string png = preview_->expand(ctx.frameNumber);
+        std::string tmp = tempName(png);
+        try {
+            writePngPreview(img, tmp, exposure_, toneMap_);
+            fs::rename(tmp, png);
+        } catch (const std::exception& e) {
+            std::error_code ec;
+            fs::remove(tmp, ec);
+            throw Error("cannot write preview " + png + ": " + e.what());
+        }
+    }
+}
+
+void ExrWriter::writeExr(const ImageView& img, const std::string& file, const FrameContext& ctx) {
+    const int W = img.width(), H = img.height();
+    const size_t N = img.pixels();
+    const bool ids = img.format == Format::Int32;
+    const int C = ids ? 1 : img.channels();
+    if (C < 1 || C > 4 || W <= 0 || H <= 0)
+        throw Error("cannot write " + file + ": unsupported image (" + std::to_string(C) +
+                    " channels, " + std::to_string(W) + "x" + std::to_string(H) + ")");
+    const bool asHalf = half_ && !ids;  // ids stay exact as float (half holds integers to 2048)
+
+    // Sanitise while converting: NaN -> 0; beyond the half range (or +-Inf) -> the largest finite
+    // value, so a file never holds Inf or NaN.
+    std::atomic<size_t> nans{0}, clamped{0};
+    const float limit = asHalf ? kHalfMax : std::numeric_limits<float>::max();
+    if (asHalf)
+        halfScratch_.resize(N * size_t(C));
+    else
+        floatScratch_.resize(N * size_t(C));
+    ctx.parallelRows(H, [&](int y0, int y1) {
+        size_t localNaN = 0, localClamp = 0;
+        for (int c = 0; c < C; ++c) {
+            const size_t b = size_t(y0) * size_t(W), e = size_t(y1) * size_t(W);
+            const float* src = img.planes[size_t(c)];
+            for (size_t i = b; i < e; ++i) {
+                float v;
+                if (ids) {
+                    v = float(reinterpret_cast<const int32_t*>(src)[i]);
+                } else {
+                    v = src[i];
+                    if (std::isnan(v)) {
+                        v = 0.f;
+                        ++localNaN;
+                    } else if (std::fabs(v) > limit) {
+                        v = std::copysign(limit, v);
+                        ++localClamp;
+                    }
+                }
+                if (asHalf)
+                    halfScratch_[size_t(c) * N + i] = half(v);
+                else
+                    floatScratch_[size_t(c) * N + i] = v;
+            }
+        }
+        nans += localNaN;
+        clamped += localClamp;
+    });
+    if (clamped && !warnedRange_) {
+        spdlog::warn(
+            "ExrWriter: frame {}: {} values beyond the {} range clamped to +-{} (warned "
+            "once per run)",
+            ctx.frameNumber, clamped.load(), asHalf ? "half" : "float", limit);
+        warnedRange_ = true;
+    }
+    if (nans && !warnedNaN_) {
+        spdlog::warn("ExrWriter: frame {}: {} NaN values written as 0 (warned once per run)",
+                     ctx.frameNumber, nans.load());
+        warnedNaN_ = true;
+    }
+
+    static const char* rgba[] = {"R", "G", "B", "A"};
+    Imf::Header header(W, H);
+    header.compression() = compressionOf(compression_);
+    const Imf::PixelType type = asHalf ? Imf::HALF : Imf::FLOAT;
+    const size_t elem = asHalf ? sizeof(half) : sizeof(float);
+    char* data = asHalf ? reinterpret_cast<char*>(halfScratch_.data())
+                        : reinterpret_cast<char*>(floatScratch_.data());
+    Imf::FrameBuffer fb;
+    for (int c = 0; c < C; ++c) {
+        const char* name = ids ? "id" : rgba[c];
+        header.channels().insert(name, Imf::Channel(type));
+        fb.insert(name, Imf::Slice(type, data + size_t(c) * N * elem, elem, elem * size_t(W)));
+    }
+    if (ctx.run) {
+        header.insert("kestrel.graph", Imf::StringAttribute(ctx.run->graphName));
+        header.insert("kestrel.provenance", Imf::StringAttribute(ctx.run->provenance));
+    }
+
+    int threads = ctx.parallel ? ctx.parallel->threadCount() : 1;
+    if (Imf::globalThreadCount() < threads) Imf::setGlobalThreadCount(threads);
+    std::string tmp = tempName(file);
+    try {
+        {
+            Imf::OutputFile out(tmp.c_str(), header, Imf::globalThreadCount());
+            out.setFrameBuffer(fb);
+            out.writePixels(H);
+        }  // closed (and flushed) before the rename
+        fs::rename(tmp, file);
+    } catch (const std::exception& e) {
+        std::error_code ec;
+        fs::remove(tmp, ec);
+        throw Error("cannot write " + file + ": " + e.what());
+    }
+}
+
+}  // namespace kestrel::exr

@@ -1,0 +1,42 @@
+#pragma once
+// ExrWriter: the sink pass. Writes whatever image arrives at `color` to one EXR per frame
+// (half or float), atomically (temporary file in the same folder, then rename), with the graph's
+// provenance in the header, and optionally a tone-mapped sRGB PNG preview.
+#include <Imath/half.h>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "PngPreview.h"
+#include "kestrel/FramePattern.h"
+#include "kestrel/Kestrel.h"
+
+namespace kestrel::exr {
+
+class ExrWriter : public Pass {
+public:
+    static PassDesc describe();
+    explicit ExrWriter(const ParamValues& params);
+
+    void beginRun(const RunContext& rc) override;
+    void execute(FrameContext& ctx, PassIO& io) override;
+    bool frameWritten(int64_t frame) const override;
+
+private:
+    void writeExr(const ImageView& img, const std::string& path, const FrameContext& ctx);
+
+    FramePattern path_;
+    std::unique_ptr<FramePattern> preview_;
+    bool half_;
+    std::string compression_;
+    float exposure_;
+    ToneMap toneMap_;
+
+    // Per-run warning flags (logging only, not image state) and conversion scratch.
+    bool warnedRange_ = false, warnedNaN_ = false;
+    std::vector<half> halfScratch_;
+    std::vector<float> floatScratch_;
+};
+
+}  // namespace kestrel::exr

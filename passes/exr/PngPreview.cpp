@@ -1,0 +1,94 @@
+#include "PngPreview.h"
+
+#include <png.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <vector>
+
+#include "kestrel/Error.h"
+
+namespace kestrel::exr {
+
+float toneMap(float x, ToneMap op) {
+    if (!(x > 0.f)) return 0.f;  // NaN, negative
+    if (std::isinf(x)) return 1.f;
+    switch (op) {
+        case ToneMap::Aces:
+            // Narkowicz 2015, "ACES Filmic Tone Mapping Curve" (fit of the ACES RRT + ODT).
+            x = (x * (2.51f * x + 0.03f)) / (x * (2.43f * x + 0.59f) + 0.14f);
+            break;
+        case ToneMap::Reinhard:
+            x = x / (1.f + x);  // Reinhard et al. 2002, eq. 3
+            break;
+        case ToneMap::Clamp:
+            break;
+    }
+    return std::clamp(x, 0.f, 1.f);
+}
+
+float srgbEncode(float v) {
+    v = std::clamp(v, 0.f, 1.f);
+    return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.f / 2.4f) - 0.055f;
+}
+
+namespace {
+uint8_t to8(float v) {
+    return uint8_t(std::lround(std::clamp(v, 0.f, 1.f) * 255.f));
+}
+
+/// A stable colour per object id (background -1: black).
+void idColour(int32_t id, uint8_t rgb[3]) {
+    if (id < 0) {
+        rgb[0] = rgb[1] = rgb[2] = 0;
+        return;
+    }
+    uint32_t h = uint32_t(id) * 2654435761u;  // Knuth's multiplicative hash
+    h ^= h >> 15;
+    rgb[0] = uint8_t(64 + (h & 0xBF));
+    rgb[1] = uint8_t(64 + ((h >> 8) & 0xBF));
+    rgb[2] = uint8_t(64 + ((h >> 16) & 0xBF));
+}
+}  // namespace
+
+void writePngPreview(const ImageView& img, const std::string& path, float exposureStops,
+                     ToneMap op) {
+    const int W = img.width(), H = img.height();
+    const int C = img.format == Format::Int32 ? 1 : img.channels();
+    const float gain = std::exp2(exposureStops);
+    std::vector<uint8_t> rgb(size_t(W) * size_t(H) * 3);
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            uint8_t* p = &rgb[(size_t(y) * size_t(W) + size_t(x)) * 3];
+            if (img.format == Format::Int32) {
+                idColour(img.atInt(x, y), p);
+                continue;
+            }
+            for (int c = 0; c < 3; ++c) {
+                int src = C == 1 ? 0 : c;
+                p[c] = src < C ? to8(srgbEncode(toneMap(img.at(src, x, y) * gain, op))) : 0;
+            }
+        }
+
+    std::FILE* f = std::fopen(path.c_str(), "wb");
+    if (!f) throw Error("cannot create PNG " + path);
+    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
+    png_infop info = png ? png_create_info_struct(png) : nullptr;
+    if (!png || !info || setjmp(png_jmpbuf(png))) {
+        png_destroy_write_struct(&png, &info);
+        std::fclose(f);
+        throw Error("cannot write PNG " + path);
+    }
+    png_init_io(png, f);
+    png_set_IHDR(png, info, png_uint_32(W), png_uint_32(H), 8, PNG_COLOR_TYPE_RGB,
+                 PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+    png_set_sRGB(png, info, PNG_sRGB_INTENT_PERCEPTUAL);
+    png_write_info(png, info);
+    for (int y = 0; y < H; ++y) png_write_row(png, &rgb[size_t(y) * size_t(W) * 3]);
+    png_write_end(png, nullptr);
+    png_destroy_write_struct(&png, &info);
+    if (std::fclose(f) != 0) throw Error("cannot write PNG " + path);
+}
+
+}  // namespace kestrel::exr

@@ -1,0 +1,109 @@
+#include "SceneMatrices.h"
+
+#include <cstring>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <vector>
+
+#include "kestrel/Error.h"
+
+namespace kestrel::exr {
+
+namespace fs = std::filesystem;
+
+Mat4 ndcToPixel(int width, int height) {
+    // Applied to clip coordinates before the divide: x' = W/2 x + W/2 w, y' = -H/2 y + H/2 w.
+    Mat4 v = Mat4::identity();
+    v.m[0][0] = 0.5f * float(width);
+    v.m[0][3] = 0.5f * float(width);
+    v.m[1][1] = -0.5f * float(height);
+    v.m[1][3] = 0.5f * float(height);
+    return v;
+}
+
+namespace {
+Mat4 toMat(const nlohmann::json& j) {
+    Mat4 m;
+    if (!j.is_array() || j.size() != 4) throw Error("a matrix is not a 4x4 nested list");
+    for (int r = 0; r < 4; ++r) {
+        if (!j[r].is_array() || j[r].size() != 4) throw Error("a matrix row has not 4 entries");
+        for (int c = 0; c < 4; ++c) m.m[r][c] = j[r][c].get<float>();
+    }
+    return m;
+}
+}  // namespace
+
+BlenderCameras::BlenderCameras(const fs::path& file) : path_(file) {
+    std::ifstream in(file);
+    if (!in) throw Error("cannot open camera file " + file.string());
+    try {
+        nlohmann::json j = nlohmann::json::parse(in);
+        int w = j.at("resolution").at(0).get<int>(), h = j.at("resolution").at(1).get<int>();
+        Mat4 viewport = ndcToPixel(w, h);
+        std::map<std::string, int32_t> ids;
+        if (j.contains("object_pass_index"))
+            for (const auto& [name, id] : j["object_pass_index"].items())
+                ids[name] = id.get<int32_t>();
+        for (const auto& f : j.at("frames")) {
+            SceneData s;
+            s.hasCamera = true;
+            s.worldToCamera = toMat(f.at("view"));
+            s.worldToPixel = viewport * toMat(f.at("view_projection"));
+            if (f.contains("objects"))
+                for (const auto& [name, m] : f["objects"].items())
+                    if (auto it = ids.find(name); it != ids.end())
+                        s.objectToWorld[it->second] = toMat(m);
+            frames_[f.at("frame").get<int64_t>()] = std::move(s);
+        }
+    } catch (const Error& e) {
+        throw Error("camera file " + file.string() + ": " + e.what());
+    } catch (const std::exception& e) {
+        throw Error("camera file " + file.string() + ": " + e.what());
+    }
+}
+
+bool BlenderCameras::fill(int64_t frame, SceneData& scene) const {
+    auto it = frames_.find(frame);
+    if (it == frames_.end()) return false;
+    scene = it->second;
+    return true;
+}
+
+void readGames202Matrices(const fs::path& file, SceneData& scene) {
+    std::ifstream in(file, std::ios::binary);
+    if (!in) throw Error("file not found");
+    std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    auto readInt = [&](size_t at) {
+        uint32_t v = uint32_t(uint8_t(bytes[at])) | uint32_t(uint8_t(bytes[at + 1])) << 8 |
+                     uint32_t(uint8_t(bytes[at + 2])) << 16 |
+                     uint32_t(uint8_t(bytes[at + 3])) << 24;
+        return v;
+    };
+    if (bytes.size() < 4) throw Error("too short for a matrix count");
+    int32_t n = int32_t(readInt(0));
+    // little-endian int32 N, then N+2 row-major float32 4x4 matrices (data/README.md)
+    if (n < 0 || uint64_t(n) + 2 > (bytes.size() - 4) / 64 ||
+        4 + (uint64_t(n) + 2) * 64 != bytes.size())
+        throw Error("size " + std::to_string(bytes.size()) + " does not match its count " +
+                    std::to_string(n) + " (expected 4 + (N+2)*64 bytes)");
+    auto mat = [&](int k) {
+        Mat4 m;
+        for (int i = 0; i < 16; ++i) {
+            uint32_t u = readInt(4 + size_t(k) * 64 + size_t(i) * 4);
+            float f;
+            std::memcpy(&f, &u, 4);
+            m.m[i / 4][i % 4] = f;
+        }
+        return m;
+    };
+    scene = SceneData{};
+    for (int i = 0; i < n; ++i) scene.objectToWorld[i] = mat(i);
+    // The file's camera space looks down +z (x right, y up); SceneData's is OpenGL's (down -z):
+    // negate the z row so that depth = -z_camera for every layout.
+    scene.worldToCamera = mat(n);
+    for (int c = 0; c < 4; ++c) scene.worldToCamera.m[2][c] = -scene.worldToCamera.m[2][c];
+    scene.worldToPixel = mat(n + 1);
+    scene.hasCamera = true;
+}
+
+}  // namespace kestrel::exr
