@@ -1,0 +1,61 @@
+#pragma once
+// The report of `kestrel bench`: error against a reference versus run time for several graphs or
+// parameter settings, so that a user can pick a pipeline (design.md sections 1 and 5).
+//
+// writeBenchReport(report, dir) writes
+//   bench.md            summary and per-pass tables (Markdown)
+//   bench.csv           one line per setting: mean metrics, ms per frame, on the Pareto front
+//   bench_frames.csv    one line per setting and frame: metrics of that frame
+//   bench_passes.csv    one line per setting and pass: ms
+//   bench.html          self-contained: the tables, inline SVG plots (mean relMSE, log scale,
+//                       versus ms per frame with the Pareto front; relMSE per frame; per-pass time
+//                       as stacked bars) and side-by-side crops as PNG data URIs
+#include <kestrel/Image.h>
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "eval/Metrics.h"
+
+namespace kestrel::eval {
+
+/// One graph or parameter setting.
+struct BenchRow {
+    std::string name;                  ///< e.g. "svgf", "svgf alpha=0.1"
+    std::vector<FrameMetrics> errors;  ///< per frame, in BenchReport::frames order
+    double msPerFrame = 0;             ///< median over frames after a warm-up
+    std::vector<std::pair<std::string, double>> passMs;  ///< per pass, median ms, in run order
+    Image crop;  ///< optional: a crop of one output frame, linear RGB (empty: none)
+
+    /// Means over frames (temporal over the frames that have it).
+    FrameMetrics mean() const;
+};
+
+struct BenchReport {
+    std::string title = "kestrel bench";
+    std::vector<int64_t> frames;  ///< frame numbers of the per-frame errors
+    std::vector<BenchRow> rows;
+    ToneMap toneMap = ToneMap::Reinhard;  ///< of the metrics and of the crops' PNGs
+    std::string cropNote;                 ///< e.g. "frame 8, x 100-227, y 40-167"
+    Image noisyCrop, referenceCrop;       ///< optional, linear RGB, same crop as the rows'
+};
+
+/// Indices of the rows on the Pareto front of (msPerFrame, mean relMSE), both minimised: no other
+/// row is at least as good in both and strictly better in one. Sorted by ms per frame.
+std::vector<size_t> paretoFront(const std::vector<BenchRow>& rows);
+
+/// An 8-bit RGB PNG (in memory) of a linear RGB image through the tone map.
+std::vector<unsigned char> encodePng(const ImageView& rgb, ToneMap toneMap);
+
+struct BenchFiles {
+    std::filesystem::path markdown, csv, framesCsv, passesCsv, html;
+};
+/// Writes the report files into `dir` (created if needed). Throws kestrel::Error naming the file
+/// that could not be written.
+BenchFiles writeBenchReport(const BenchReport& report, const std::filesystem::path& dir);
+
+}  // namespace kestrel::eval

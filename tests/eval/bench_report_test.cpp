@@ -1,0 +1,141 @@
+// Bench report writer on synthetic rows: the Pareto set of a hand-made case, the files, the
+// inline SVG plots and the PNG crops.
+#include <eval/BenchReport.h>
+#include <gtest/gtest.h>
+#include <png.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "ExrTestUtil.h"
+
+namespace fs = std::filesystem;
+using namespace kestrel;
+using namespace kestrel::eval;
+
+namespace {
+
+BenchRow row(const std::string& name, double ms, double relMse, size_t frames = 3) {
+    BenchRow r;
+    r.name = name;
+    r.msPerFrame = ms;
+    for (size_t f = 0; f < frames; ++f) {
+        FrameMetrics m;
+        // Per-frame errors around relMse whose mean is exactly relMse.
+        m.relMse = relMse * (f == 0 ? 0.5 : f == 1 ? 1.5 : 1.0);
+        m.psnr = 30;
+        m.ssim = 0.9;
+        if (f) m.temporal = 0.01;
+        r.errors.push_back(m);
+    }
+    r.passMs = {{"load", 0.2 * ms}, {"atrous", 0.7 * ms}, {"write", 0.1 * ms}};
+    return r;
+}
+
+struct Spec {
+    const char* name;
+    double ms, relMse;
+};
+// BenchRow holds an Image (move-only), so rows are built in place.
+std::vector<BenchRow> rows(std::initializer_list<Spec> specs) {
+    std::vector<BenchRow> out;
+    for (const Spec& s : specs) out.push_back(row(s.name, s.ms, s.relMse));
+    return out;
+}
+
+std::string slurp(const fs::path& p) {
+    std::ifstream f(p, std::ios::binary);
+    std::stringstream s;
+    s << f.rdbuf();
+    return s.str();
+}
+
+Image gradient(int w, int h) {
+    Image img(w, h, Format::Float3);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            for (int c = 0; c < 3; ++c) img.at(c, x, y) = 0.1f * float(x + y + c);
+    return img;
+}
+
+}  // namespace
+
+TEST(BenchReport, ParetoFrontOfHandMadeCase) {
+    // (ms, relMSE): A (10, 0.1), B (20, 0.05), C (30, 0.08) dominated by B, D (5, 0.5),
+    // E (20, 0.06) dominated by B (same time, more error), F (40, 0.05) dominated by B (same
+    // error, slower), G (50, 0.01).
+    std::vector<BenchRow> r = rows({{"A", 10, 0.1},
+                                    {"B", 20, 0.05},
+                                    {"C", 30, 0.08},
+                                    {"D", 5, 0.5},
+                                    {"E", 20, 0.06},
+                                    {"F", 40, 0.05},
+                                    {"G", 50, 0.01}});
+    EXPECT_NEAR(r[0].mean().relMse, 0.1, 1e-12);
+    EXPECT_EQ(paretoFront(r), (std::vector<size_t>{3, 0, 1, 6}));  // D, A, B, G by time
+    // Two identical rows: neither dominates the other.
+    EXPECT_EQ(paretoFront(rows({{"X", 1, 1}, {"Y", 1, 1}})), (std::vector<size_t>{0, 1}));
+    EXPECT_TRUE(paretoFront({}).empty());
+}
+
+TEST(BenchReport, PngRoundTrip) {
+    Image img = gradient(7, 5);
+    std::vector<unsigned char> png = encodePng(img, ToneMap::Clamp);
+    png_image info{};
+    info.version = PNG_IMAGE_VERSION;
+    ASSERT_TRUE(png_image_begin_read_from_memory(&info, png.data(), png.size()));
+    EXPECT_EQ(info.width, 7u);
+    EXPECT_EQ(info.height, 5u);
+    info.format = PNG_FORMAT_RGB;
+    std::vector<unsigned char> pixels(PNG_IMAGE_SIZE(info));
+    ASSERT_TRUE(png_image_finish_read(&info, nullptr, pixels.data(), 0, nullptr));
+    // Pixel (3, 2), green: clamp(0.1 * 6) = 0.6 -> 153.
+    EXPECT_EQ(pixels[(2 * 7 + 3) * 3 + 1], 153);
+}
+
+TEST(BenchReport, WritesFilesWithPlotsAndCrops) {
+    BenchReport r;
+    r.title = "svgf <settings> & friends";
+    r.frames = {5, 6, 7};
+    r.rows = rows({{"svgf", 12, 0.02},
+                   {"svgf alpha=0.05", 12.5, 0.03},
+                   {"jbf", 30, 0.04},
+                   {"noisy, \"raw\"", 0.5, 0.5}});
+    r.rows[0].crop = gradient(16, 16);
+    r.noisyCrop = gradient(16, 16);
+    r.referenceCrop = gradient(16, 16);
+    r.cropNote = "frame 6, x 0-15, y 0-15";
+    const fs::path dir = testutil::tempDir() / "report";
+    BenchFiles files = writeBenchReport(r, dir);
+    for (const fs::path& p :
+         {files.markdown, files.csv, files.framesCsv, files.passesCsv, files.html})
+        EXPECT_TRUE(fs::exists(p)) << p;
+
+    const std::string html = slurp(files.html);
+    EXPECT_EQ(html.rfind("<!DOCTYPE html>", 0), 0u);
+    size_t svgs = 0;
+    for (size_t p = html.find("<svg"); p != std::string::npos; p = html.find("<svg", p + 1)) ++svgs;
+    EXPECT_EQ(svgs, 3u);  // error vs time, error per frame, per-pass time
+    EXPECT_NE(html.find("Pareto front"), std::string::npos);
+    size_t pngs = 0;
+    for (size_t p = html.find("data:image/png;base64,"); p != std::string::npos;
+         p = html.find("data:image/png;base64,", p + 1))
+        ++pngs;
+    EXPECT_EQ(pngs, 3u);  // noisy, the one output crop, reference
+    EXPECT_NE(html.find("svgf &lt;settings&gt; &amp; friends"), std::string::npos);  // escaped
+    EXPECT_EQ(html.find("<settings>"), std::string::npos);
+
+    const std::string csv = slurp(files.csv);
+    EXPECT_EQ(csv.rfind("setting,relMse,psnr,ssim,temporal,msPerFrame,pareto", 0), 0u);
+    EXPECT_NE(csv.find("svgf,0.02,30,0.9,0.010000,12,1,0"), std::string::npos) << csv;
+    EXPECT_NE(csv.find("svgf alpha=0.05,0.03,30,0.9,0.010000,12.5,0,0"), std::string::npos);
+    EXPECT_NE(csv.find("\"noisy, \"\"raw\"\"\""), std::string::npos);  // RFC 4180 quoting
+    const std::string frames = slurp(files.framesCsv);
+    EXPECT_NE(frames.find("svgf,5,0.01,30,0.9,,0"), std::string::npos) << frames;
+    EXPECT_NE(slurp(files.passesCsv).find("jbf,atrous,21"), std::string::npos);
+    const std::string md = slurp(files.markdown);
+    EXPECT_NE(md.find("| svgf | 0.02 | 30.00 | 0.9000 | 0.010000 | 12.00 | * |"), std::string::npos)
+        << md;
+}
