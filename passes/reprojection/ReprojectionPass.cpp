@@ -1,0 +1,312 @@
+#include "ReprojectionPass.h"
+
+#include <kestrel/PixelMath.h>
+
+#include <map>
+#include <vector>
+
+using namespace kestrel;
+
+PassDesc ReprojectionPass::describe() {
+    PassDesc d("Reprojection",
+               "Reprojects last frame's colour, moments and history length into this frame:"
+               " position from motion vectors, else world position + per-object and camera"
+               " matrices, else identity; 2x2 bilinear taps with depth/normal/id consistency"
+               " tests, 3x3 fallback, else disocclusion (historyLength 0). Optional Catmull-Rom"
+               " colour resampling for TAA histories.");
+    d.input("depth", Format::Float, "linear view depth")
+        .input("normal", Format::Float3, "world-space normal")
+        .optionalInput("objectId", Format::Int32, "object id (taps on another object are rejected)")
+        .optionalInput("motion", Format::Float2, "screen motion to the previous frame, pixels")
+        .optionalInput("position", Format::Float3, "world position (matrix reprojection)")
+        .historyInput("prevDepth", Format::Float, "last frame's depth")
+        .historyInput("prevNormal", Format::Float3, "last frame's normal")
+        .historyInput("prevObjectId", Format::Int32, "last frame's object id")
+        .historyInput("prevColor", Format::Float3, "last frame's colour history")
+        .historyInput("prevMoments", Format::Float2, "last frame's moments history")
+        .historyInput("prevHistoryLength", Format::Float, "last frame's history length")
+        .output("color", Format::Float3, "reprojected colour (0 where disoccluded)")
+        .output("moments", Format::Float2, "reprojected moments (0 where disoccluded)")
+        .output("historyLength", Format::Float,
+                "reprojected history length, 0 where disoccluded or without valid history; when"
+                " prevHistoryLength is not fed, 1 where the reprojection succeeded")
+        .paramEnum("filter", "bilinear", {"bilinear", "catmullrom"},
+                   "colour resampling: bilinear (SVGF) or Catmull-Rom 4x4 (sharp, for TAA)")
+        .paramFloat("depthThreshold", 10.0, 0.0, 1e6,
+                    "max |z - z_prev| / (fwidth(z) + 0.01) of a consistent tap")
+        .paramFloat("normalThreshold", 16.0, 0.0, 1e6,
+                    "max |n - n_prev| / (fwidth(n) + 0.01) of a consistent tap");
+    return d;
+}
+
+ReprojectionPass::ReprojectionPass(const ParamValues& p)
+    : catmullRom_(p.getString("filter") == "catmullrom"),
+      depthThreshold_(p.getFloat("depthThreshold")),
+      normalThreshold_(p.getFloat("normalThreshold")) {}
+
+void ReprojectionPass::resolve(ResolveContext& rc) {
+    if (!rc.isBound("prevColor")) rc.setAbsent("color", "prevColor is not connected");
+    if (!rc.isBound("prevMoments")) rc.setAbsent("moments", "prevMoments is not connected");
+    if (rc.isBound("motion"))
+        rc.note("reprojecting with motion vectors");
+    else if (rc.isBound("position"))
+        rc.note("reprojecting with world positions and matrices");
+    else
+        rc.note("no motion and no position: identity reprojection (static camera assumed)");
+}
+
+namespace {
+
+/// Per-object transforms of the matrix path: current world -> previous pixel (and previous
+/// camera, for the expected previous depth). GAMES202: Screen_{i-1} = P V M_{i-1} M_i^-1 World_i.
+struct ObjectTransforms {
+    Mat4 toPrevPixel, toPrevCamera;
+};
+
+class TransformTable {
+public:
+    TransformTable(const SceneData& cur, const SceneData& prev) {
+        fallback_ = {prev.worldToPixel, prev.worldToCamera};
+        for (const auto& [id, o2w] : cur.objectToWorld) {
+            auto it = prev.objectToWorld.find(id);
+            auto inv = inverse(o2w);
+            if (it == prev.objectToWorld.end() || !inv) continue;
+            Mat4 motion = it->second * *inv;
+            byId_[id] = {prev.worldToPixel * motion, prev.worldToCamera * motion};
+        }
+        if (!byId_.empty()) {
+            lo_ = byId_.begin()->first;
+            int64_t span = int64_t(byId_.rbegin()->first) - lo_ + 1;
+            if (span <= 65536) {  // dense table: no map lookup per pixel
+                dense_.assign(size_t(span), fallback_);
+                for (const auto& [id, t] : byId_) dense_[size_t(id - lo_)] = t;
+            }
+        }
+    }
+    const ObjectTransforms& fallback() const { return fallback_; }
+    const ObjectTransforms& get(int32_t id) const {
+        if (!dense_.empty()) {
+            int64_t i = int64_t(id) - lo_;
+            return i >= 0 && i < int64_t(dense_.size()) ? dense_[size_t(i)] : fallback_;
+        }
+        auto it = byId_.find(id);
+        return it == byId_.end() ? fallback_ : it->second;
+    }
+
+private:
+    ObjectTransforms fallback_;  // static objects: camera motion only
+    std::map<int32_t, ObjectTransforms> byId_;
+    std::vector<ObjectTransforms> dense_;
+    int32_t lo_ = 0;
+};
+
+// Catmull-Rom weights of the 4 taps around a fraction t in [0,1).
+inline void catmullRomWeights(float t, float w[4]) {
+    const float t2 = t * t, t3 = t2 * t;
+    w[0] = -0.5f * t3 + t2 - 0.5f * t;
+    w[1] = 1.5f * t3 - 2.5f * t2 + 1.f;
+    w[2] = -1.5f * t3 + 2.f * t2 + 0.5f * t;
+    w[3] = 0.5f * t3 - 0.5f * t2;
+}
+
+}  // namespace
+
+void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
+    const int w = ctx.extent.width, h = ctx.extent.height;
+    const ImageView* outC = io.hasOutput("color") ? &io.output("color") : nullptr;
+    const ImageView* outM = io.hasOutput("moments") ? &io.output("moments") : nullptr;
+    const ImageView* outH = io.hasOutput("historyLength") ? &io.output("historyLength") : nullptr;
+    auto zeroAll = [&] {
+        for (const ImageView* o : {outC, outM, outH})
+            if (o)
+                for (int c = 0; c < o->channels(); ++c)
+                    std::fill(o->channel(c), o->channel(c) + o->pixels(), 0.f);
+    };
+    const bool colorValid = io.hasInput("prevColor"), momentsValid = io.hasInput("prevMoments");
+    const bool hlValid = io.hasInput("prevHistoryLength");
+    // Without last frame's geometry no tap can be tested; without any history there is nothing
+    // to reproject: all outputs 0, history length 0.
+    if (!io.hasInput("prevDepth") || !io.hasInput("prevNormal") || (!colorValid && !momentsValid)) {
+        zeroAll();
+        return;
+    }
+    const ImageView& depth = io.input("depth");
+    const ImageView& normal = io.input("normal");
+    const ImageView& pDepth = io.input("prevDepth");
+    const ImageView& pNormal = io.input("prevNormal");
+    const bool useIds = io.hasInput("objectId") && io.hasInput("prevObjectId");
+    const int32_t* curIds = io.hasInput("objectId") ? io.input("objectId").ints() : nullptr;
+    const int32_t* ids = useIds ? curIds : nullptr;
+    const int32_t* pIds = useIds ? io.input("prevObjectId").ints() : nullptr;
+    const ImageView* pColor = colorValid ? &io.input("prevColor") : nullptr;
+    const ImageView* pMoments = momentsValid ? &io.input("prevMoments") : nullptr;
+    const ImageView* pHist = hlValid ? &io.input("prevHistoryLength") : nullptr;
+    const ImageView* motion = io.hasInput("motion") ? &io.input("motion") : nullptr;
+    const ImageView* position = io.hasInput("position") ? &io.input("position") : nullptr;
+    const bool matrices = !motion && position && ctx.scene && ctx.previousScene &&
+                          ctx.scene->hasCamera && ctx.previousScene->hasCamera;
+    std::optional<TransformTable> table;
+    if (matrices) table.emplace(*ctx.scene, *ctx.previousScene);
+    const float dThr = depthThreshold_, nThr = normalThreshold_;
+    const bool cr = catmullRom_;
+
+    ctx.parallelRows(h, [&](int y0, int y1) {
+        for (int y = y0; y < y1; ++y)
+            for (int x = 0; x < w; ++x) {
+                const size_t i = size_t(y) * size_t(w) + size_t(x);
+                // Previous-frame position in continuous pixel coordinates (centres at +0.5).
+                float ppx = float(x) + 0.5f, ppy = float(y) + 0.5f;
+                float zRef = px::sanitizeDepth(depth.at(0, x, y));
+                bool ok = true;
+                if (motion) {
+                    ppx += motion->at(0, x, y);
+                    ppy += motion->at(1, x, y);
+                } else if (matrices) {
+                    const int32_t id = curIds ? curIds[i] : 0;
+                    if (zRef >= kBackgroundDepth || (curIds && id == kBackgroundId)) {
+                        ok = false;  // no surface position to reproject
+                    } else {
+                        const ObjectTransforms& t = curIds ? table->get(id) : table->fallback();
+                        Vec3 p{position->at(0, x, y), position->at(1, x, y), position->at(2, x, y)};
+                        Vec4 s = t.toPrevPixel.transformPoint(p);
+                        Vec4 c = t.toPrevCamera.transformPoint(p);
+                        ok = s.w > 1e-20f;
+                        if (ok) {
+                            ppx = s.x / s.w;
+                            ppy = s.y / s.w;
+                            zRef = -c.z;  // the point's depth last frame (camera looks down -Z)
+                        }
+                    }
+                }
+                // NaN, Inf or absurd positions: disoccluded (also guards the int conversions).
+                ok = ok && std::fabs(ppx) < 1e7f && std::fabs(ppy) < 1e7f;
+
+                // Screen-space derivatives at p (one-sided, edge-preserving).
+                const bool l = x > 0, r = x + 1 < w, u = y > 0, d = y + 1 < h;
+                auto zAt = [&](int xx, int yy) { return px::sanitizeDepth(depth.at(0, xx, yy)); };
+                const float zc = zAt(x, y);
+                const float fwZ = std::fabs(px::minAbsDiff(l ? zAt(x - 1, y) : 0, zc,
+                                                           r ? zAt(x + 1, y) : 0, l, r)) +
+                                  std::fabs(px::minAbsDiff(u ? zAt(x, y - 1) : 0, zc,
+                                                           d ? zAt(x, y + 1) : 0, u, d));
+                float n[3], dnx2 = 0, dny2 = 0;
+                for (int c = 0; c < 3; ++c) {
+                    auto nAt = [&](int xx, int yy) {
+                        return px::sanitizeNormal(normal.at(c, xx, yy));
+                    };
+                    n[c] = nAt(x, y);
+                    const float gx =
+                        px::minAbsDiff(l ? nAt(x - 1, y) : 0, n[c], r ? nAt(x + 1, y) : 0, l, r);
+                    const float gy =
+                        px::minAbsDiff(u ? nAt(x, y - 1) : 0, n[c], d ? nAt(x, y + 1) : 0, u, d);
+                    dnx2 += gx * gx;
+                    dny2 += gy * gy;
+                }
+                const float fwN = std::sqrt(dnx2) + std::sqrt(dny2);
+                const float invZ = 1.f / (fwZ + 1e-2f), invN = 1.f / (fwN + 1e-2f);
+
+                // SVGF consistency test of a previous-frame tap (Falcor's isReprjValid).
+                auto consistent = [&](int tx, int ty) {
+                    if (tx < 0 || ty < 0 || tx >= w || ty >= h) return false;
+                    const size_t t = size_t(ty) * size_t(w) + size_t(tx);
+                    if (pIds && pIds[t] != ids[i]) return false;
+                    if (std::fabs(zRef - px::sanitizeDepth(pDepth.channel(0)[t])) * invZ > dThr)
+                        return false;
+                    float dn2 = 0;
+                    for (int c = 0; c < 3; ++c) {
+                        const float dn = n[c] - px::sanitizeNormal(pNormal.channel(c)[t]);
+                        dn2 += dn * dn;
+                    }
+                    return std::sqrt(dn2) * invN <= nThr;
+                };
+
+                float acc[3] = {0, 0, 0}, accM[2] = {0, 0}, accH = 0, sumW = 0;
+                auto addTap = [&](int tx, int ty, float wt) {
+                    const size_t t = size_t(ty) * size_t(w) + size_t(tx);
+                    if (pColor)
+                        for (int c = 0; c < 3; ++c)
+                            acc[c] += wt * px::sanitize(pColor->channel(c)[t]);
+                    if (pMoments) {
+                        accM[0] += wt * px::sanitize(pMoments->channel(0)[t]);
+                        accM[1] += wt * px::sanitizePositive(pMoments->channel(1)[t], 1e32f);
+                    }
+                    accH += wt * (pHist ? px::sanitizePositive(pHist->channel(0)[t], 1e6f) : 1.f);
+                    sumW += wt;
+                };
+                int x0 = 0, y0 = 0;
+                float fx = 0, fy = 0;
+                bool all4 = false;
+                if (ok) {
+                    const float bx = ppx - 0.5f, by = ppy - 0.5f;
+                    x0 = int(std::floor(bx));
+                    y0 = int(std::floor(by));
+                    fx = bx - float(x0);
+                    fy = by - float(y0);
+                    const float bw[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy,
+                                         fx * fy};
+                    int nOk = 0;
+                    for (int k = 0; k < 4; ++k) {
+                        const int tx = x0 + (k & 1), ty = y0 + (k >> 1);
+                        if (!consistent(tx, ty)) continue;
+                        ++nOk;
+                        if (bw[k] > 0.f) addTap(tx, ty, bw[k]);
+                    }
+                    all4 = nOk == 4;
+                    if (sumW < 1e-4f) {
+                        // 3x3 fallback around the pixel containing the position: equal weights.
+                        acc[0] = acc[1] = acc[2] = accM[0] = accM[1] = accH = sumW = 0;
+                        const int cx = int(std::floor(ppx)), cy = int(std::floor(ppy));
+                        for (int j = -1; j <= 1; ++j)
+                            for (int k = -1; k <= 1; ++k)
+                                if (consistent(cx + k, cy + j)) addTap(cx + k, cy + j, 1.f);
+                        all4 = false;
+                    }
+                }
+                if (sumW <= 0.f) {  // disoccluded
+                    if (outC)
+                        for (int c = 0; c < 3; ++c) outC->channel(c)[i] = 0.f;
+                    if (outM) outM->channel(0)[i] = outM->channel(1)[i] = 0.f;
+                    if (outH) outH->channel(0)[i] = 0.f;
+                    continue;
+                }
+                const float inv = 1.f / sumW;
+                float col[3] = {acc[0] * inv, acc[1] * inv, acc[2] * inv};
+                if (cr && pColor && all4 && x0 >= 1 && y0 >= 1 && x0 + 2 < w && y0 + 2 < h) {
+                    // Catmull-Rom 4x4 when every tap is consistent, clamped to the inner 2x2
+                    // taps' range so negative lobes cannot ring.
+                    bool all16 = true;
+                    for (int j = -1; j <= 2 && all16; ++j)
+                        for (int k = -1; k <= 2 && all16; ++k)
+                            if ((j < 0 || j > 1 || k < 0 || k > 1) && !consistent(x0 + k, y0 + j))
+                                all16 = false;
+                    if (all16) {
+                        float wx[4], wy[4];
+                        catmullRomWeights(fx, wx);
+                        catmullRomWeights(fy, wy);
+                        for (int c = 0; c < 3; ++c) {
+                            const float* pc = pColor->channel(c);
+                            float s = 0, lo = 3e38f, hi = -3e38f;
+                            for (int j = 0; j < 4; ++j)
+                                for (int k = 0; k < 4; ++k) {
+                                    const float v = px::sanitize(
+                                        pc[size_t(y0 - 1 + j) * size_t(w) + size_t(x0 - 1 + k)]);
+                                    s += wx[k] * wy[j] * v;
+                                    if (j >= 1 && j <= 2 && k >= 1 && k <= 2) {
+                                        lo = std::min(lo, v);
+                                        hi = std::max(hi, v);
+                                    }
+                                }
+                            col[c] = px::clamp(s, lo, hi);
+                        }
+                    }
+                }
+                if (outC)
+                    for (int c = 0; c < 3; ++c) outC->channel(c)[i] = col[c];
+                if (outM) {
+                    outM->channel(0)[i] = accM[0] * inv;
+                    outM->channel(1)[i] = accM[1] * inv;
+                }
+                if (outH) outH->channel(0)[i] = accH * inv;
+            }
+    });
+}

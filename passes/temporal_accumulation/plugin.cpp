@@ -1,0 +1,7 @@
+#include <kestrel/Plugin.h>
+
+#include "TemporalAccumulationPass.h"
+
+KESTREL_PLUGIN(r) {
+    r.add<TemporalAccumulationPass>();
+}

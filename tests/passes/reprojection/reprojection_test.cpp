@@ -1,0 +1,200 @@
+#include <gtest/gtest.h>
+
+#include "../SvgfTestImages.h"
+#include "ReprojectionPass.h"
+
+using namespace kestrel;
+using namespace svgftest;
+using kestrel::testing::PassHarness;
+
+namespace {
+constexpr int W = 10, H = 6;
+
+/// A fronto-parallel plane at depth 10 seen by a pinhole camera (focal length 10 px, looking
+/// down -Z) that moved by +2 world units along X since the last frame: every point now at
+/// pixel x was at pixel x + 2 (motion (+2, 0)).
+struct Frames {
+    Image depth = constant(W, H, Format::Float, 10.f), normal = normals(W, H, 0, 0, 1);
+    Image ids = svgftest::ids(W, H, [](int, int) { return 3; });
+    Image prevDepth = constant(W, H, Format::Float, 10.f), prevNormal = normals(W, H, 0, 0, 1);
+    Image prevIds = svgftest::ids(W, H, [](int, int) { return 3; });
+    Image prevColor = grey(W, H, [](int x, int y) { return float(x + 100 * y); });
+    Image prevMoments = Image(W, H, Format::Float2);
+    Image prevLength = constant(W, H, Format::Float, 5.f);
+    Image motion = Image(W, H, Format::Float2);
+    Image position = Image(W, H, Format::Float3);
+    Frames() {
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x) {
+                prevMoments.at(0, x, y) = float(x);
+                prevMoments.at(1, x, y) = float(y);
+                motion.at(0, x, y) = 2.f;
+                // World point seen at pixel (x, y) by the current camera at X = 2.
+                position.at(0, x, y) = (float(x) + 0.5f - W / 2.f) + 2.f;
+                position.at(1, x, y) = -(float(y) + 0.5f - H / 2.f);
+                position.at(2, x, y) = -10.f;
+            }
+    }
+};
+
+Mat4 pinhole(float camX) {
+    // pixel = (f X_c / -Z_c + W/2, -f Y_c / -Z_c + H/2), f = 10, camera at (camX, 0, 0).
+    Mat4 view = Mat4::identity();
+    view.m[0][3] = -camX;
+    Mat4 proj{};
+    proj.m[0] = {10.f, 0.f, -W / 2.f, 0.f};
+    proj.m[1] = {0.f, -10.f, -H / 2.f, 0.f};
+    proj.m[2] = {0.f, 0.f, 1.f, 0.f};
+    proj.m[3] = {0.f, 0.f, -1.f, 0.f};
+    return proj * view;
+}
+
+void setCameras(PassHarness& h, float cur, float prev) {
+    for (auto [scene, x] : {std::pair{&h.scene, cur}, std::pair{&h.previousScene, prev}}) {
+        scene->hasCamera = true;
+        scene->worldToCamera = Mat4::identity();
+        scene->worldToCamera.m[0][3] = -x;
+        scene->worldToPixel = pinhole(x);
+    }
+}
+
+PassHarness make(const Frames& f, bool useMotion, std::map<std::string, ParamValue> p = {},
+                 int threads = 1) {
+    auto h = PassHarness::make<ReprojectionPass>({W, H}, p, threads);
+    h.bind("depth", f.depth);
+    h.bind("normal", f.normal);
+    h.bind("objectId", f.ids);
+    if (useMotion)
+        h.bind("motion", f.motion);
+    else
+        h.bind("position", f.position);
+    h.bind("prevDepth", f.prevDepth);
+    h.bind("prevNormal", f.prevNormal);
+    h.bind("prevObjectId", f.prevIds);
+    h.bind("prevColor", f.prevColor);
+    h.bind("prevMoments", f.prevMoments);
+    h.bind("prevHistoryLength", f.prevLength);
+    setCameras(h, 2.f, 0.f);
+    return h;
+}
+}  // namespace
+
+TEST(Reprojection, CameraTranslationLandsOnExactPixels) {
+    Frames f;
+    for (bool useMotion : {true, false}) {
+        auto h = make(f, useMotion);
+        h.run();
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x) {
+                SCOPED_TRACE(::testing::Message()
+                             << (useMotion ? "motion" : "matrices") << " x=" << x << " y=" << y);
+                if (x + 2 < W) {
+                    EXPECT_NEAR(h.out("color").at(0, x, y), float(x + 2 + 100 * y), 1e-3f);
+                    EXPECT_NEAR(h.out("moments").at(0, x, y), float(x + 2), 1e-4f);
+                    EXPECT_NEAR(h.out("moments").at(1, x, y), float(y), 1e-4f);
+                    EXPECT_NEAR(h.out("historyLength").at(0, x, y), 5.f, 1e-5f);
+                } else if (x + 2 == W) {
+                    // Lands just off screen: the 3x3 fallback averages the last column's
+                    // rows y-1..y+1 that exist.
+                    float sum = 0, n = 0;
+                    for (int r = std::max(0, y - 1); r <= std::min(H - 1, y + 1); ++r, ++n)
+                        sum += float(W - 1 + 100 * r);
+                    EXPECT_NEAR(h.out("color").at(0, x, y), sum / n, 1e-3f);
+                } else {  // came from outside the previous frame
+                    EXPECT_EQ(h.out("historyLength").at(0, x, y), 0.f);
+                    EXPECT_EQ(h.out("color").at(0, x, y), 0.f);
+                }
+            }
+    }
+}
+
+TEST(Reprojection, DisocclusionResetsHistoryLength) {
+    Frames f;
+    // Last frame a near object (depth 2, id 7) covered previous columns 3..7, rows 1..4: the
+    // plane behind it, visible now at columns 1..5, was hidden.
+    for (int y = 1; y <= 4; ++y)
+        for (int x = 3; x <= 7; ++x) {
+            f.prevDepth.at(0, x, y) = 2.f;
+            f.prevIds.atInt(x, y) = 7;
+        }
+    auto h = make(f, true);
+    h.run();
+    // Pixel (3, 2) maps to (5, 2): its 2x2 and 3x3 neighbourhoods are all occluder.
+    EXPECT_EQ(h.out("historyLength").at(0, 3, 2), 0.f);
+    EXPECT_EQ(h.out("historyLength").at(0, 3, 3), 0.f);
+    // Untouched pixels keep their history.
+    EXPECT_NEAR(h.out("historyLength").at(0, 0, 0), 5.f, 1e-5f);
+    // Edge pixel (0, 2) -> (2, 2): exact tap consistent.
+    EXPECT_NEAR(h.out("color").at(0, 0, 2), 2.f + 200.f, 1e-3f);
+
+    // Depth alone (same ids) also rejects: |10 - 2| / (0 + 0.01) >> 10.
+    for (int y = 1; y <= 4; ++y)
+        for (int x = 3; x <= 7; ++x) f.prevIds.atInt(x, y) = 3;
+    auto h2 = make(f, true);
+    h2.run();
+    EXPECT_EQ(h2.out("historyLength").at(0, 3, 2), 0.f);
+}
+
+TEST(Reprojection, HalfPixelMotionBlendsBilinearly) {
+    Frames f;
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) f.motion.at(0, x, y) = 0.5f;
+    auto h = make(f, true);
+    h.run();
+    EXPECT_NEAR(h.out("color").at(0, 4, 2), 4.5f + 200.f, 1e-3f);
+    // Catmull-Rom on a linear ramp reproduces the ramp too, and never overshoots a step.
+    auto c = make(f, true, {{"filter", std::string("catmullrom")}});
+    c.run();
+    EXPECT_NEAR(c.out("color").at(0, 4, 2), 4.5f + 200.f, 1e-3f);
+    f.prevColor = grey(W, H, [](int x, int) { return x < 5 ? 0.f : 1.f; });
+    auto step = make(f, true, {{"filter", std::string("catmullrom")}});
+    step.run();
+    for (int x = 0; x < W; ++x) {
+        EXPECT_GE(step.out("color").at(0, x, 2), 0.f);
+        EXPECT_LE(step.out("color").at(0, x, 2), 1.f);
+    }
+}
+
+TEST(Reprojection, InvalidHistoryGivesZeros) {
+    Frames f;
+    auto h = make(f, true);
+    h.bind("prevColor", f.prevColor, false);
+    h.bind("prevMoments", f.prevMoments, false);
+    h.run();
+    for (int x = 0; x < W; ++x) {
+        EXPECT_EQ(h.out("historyLength").at(0, x, 1), 0.f);
+        EXPECT_EQ(h.out("color").at(0, x, 1), 0.f);
+    }
+}
+
+TEST(Reprojection, NonFiniteInputsGiveFiniteOutputs) {
+    Frames f;
+    f.motion.at(0, 1, 1) = NAN;
+    f.motion.at(1, 2, 1) = INFINITY;
+    f.motion.at(0, 3, 1) = -1e30f;
+    f.depth.at(0, 4, 4) = NAN;
+    f.normal.at(0, 5, 5) = NAN;
+    f.prevColor.at(0, 4, 2) = NAN;
+    f.prevMoments.at(1, 5, 3) = INFINITY;
+    f.prevDepth.at(0, 6, 0) = NAN;
+    auto h = make(f, true);
+    h.run();
+    for (const char* o : {"color", "moments", "historyLength"})
+        EXPECT_TRUE(allFinite(h.out(o))) << o;
+    EXPECT_EQ(h.out("historyLength").at(0, 1, 1), 0.f);  // NaN motion: disoccluded
+}
+
+TEST(Reprojection, IdenticalWithOneAndTwoThreads) {
+    Frames f;
+    const int w = W, hgt = H;
+    for (int y = 0; y < hgt; ++y)
+        for (int x = 0; x < w; ++x) {
+            f.motion.at(0, x, y) = 3.f * hash01(x, y) - 1.5f;
+            f.motion.at(1, x, y) = 3.f * hash01(x, y, 1) - 1.5f;
+        }
+    auto a = make(f, true, {}, 1), b = make(f, true, {}, 2);
+    a.run();
+    b.run();
+    for (const char* o : {"color", "moments", "historyLength"})
+        EXPECT_TRUE(identical(a.out(o), b.out(o))) << o;
+}
