@@ -1,0 +1,16 @@
+#pragma once
+// SVGF variance estimation (Schied et al. 2017, section 4.2; Falcor SVGFFilterMoments): where the
+// temporal history is short (< 4 frames) the temporal variance is unreliable, so the luminance
+// moments are estimated spatially with a 7x7 cross-bilateral filter and the variance is boosted
+// by 4 / historyLength; the illumination is filtered with the same weights there.
+#include <kestrel/Kestrel.h>
+
+class VarianceEstimationPass final : public kestrel::Pass {
+public:
+    static kestrel::PassDesc describe();
+    explicit VarianceEstimationPass(const kestrel::ParamValues& p);
+    void execute(kestrel::FrameContext& ctx, kestrel::PassIO& io) override;
+
+private:
+    float sigmaZ_, sigmaN_, sigmaL_, minHistory_;
+};
