@@ -37,6 +37,7 @@ struct Axes {
     double left = 70, top = 20, width = 560, height = 300;
     double xmin = 0, xmax = 1, ymin = 0, ymax = 1;  // y in log10 units when logY
     bool logY = false;
+    bool integerX = false;  ///< ticks on whole numbers only (frame numbers)
 
     double px(double x) const { return left + (x - xmin) / (xmax - xmin) * width; }
     double py(double y) const {
@@ -52,7 +53,8 @@ struct Axes {
         os << "<rect x='" << left << "' y='" << top << "' width='" << width << "' height='"
            << height << "' fill='none' stroke='#444'/>\n";
         if (xTicks) {
-            const double step = niceStep(xmax - xmin, 6);
+            const double step =
+                integerX ? std::max(1.0, niceStep(xmax - xmin, 6)) : niceStep(xmax - xmin, 6);
             for (double x = std::ceil(xmin / step) * step; x <= xmax + 1e-9 * step; x += step)
                 os << "<line x1='" << px(x) << "' x2='" << px(x) << "' y1='" << top + height
                    << "' y2='" << top + height + 5 << "' stroke='#444'/><text x='" << px(x)
@@ -140,6 +142,7 @@ std::string errorPerFrame(const BenchReport& r) {
     a.xmax = n > 1 ? frameOf(n - 1) : a.xmin + 1;
     if (a.xmax <= a.xmin) a.xmax = a.xmin + 1;
     a.logY = true;
+    a.integerX = true;
     logRange(eLo, eHi, a);
     std::ostringstream os;
     os << svgOpen(a);
@@ -177,7 +180,7 @@ std::string passBreakdown(const BenchReport& r) {
     a.xmax = tMax > 0 ? tMax * 1.05 : 1;
     std::ostringstream os;
     Axes tall = a;
-    tall.height += 18.0 * double((passes.size() + 3) / 4);  // room for the legend
+    tall.height += 16 + 18.0 * double((passes.size() + 3) / 4);  // room for the legend
     os << svgOpen(tall);
     a.draw(os, "ms per frame", "");
     for (size_t i = 0; i < r.rows.size(); ++i) {
@@ -196,7 +199,7 @@ std::string passBreakdown(const BenchReport& r) {
     }
     for (size_t k = 0; k < passes.size(); ++k) {
         const double x = a.left + 115.0 * double(k % 4),
-                     y = a.top + a.height + 48 + 18.0 * double(k / 4);
+                     y = a.top + a.height + 64 + 18.0 * double(k / 4);
         os << "<rect x='" << x << "' y='" << y - 9 << "' width='10' height='10' fill='" << colour(k)
            << "'/><text x='" << x + 14 << "' y='" << y << "'>" << escapeXml(passes[k])
            << "</text>\n";
