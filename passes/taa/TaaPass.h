@@ -1,0 +1,33 @@
+#pragma once
+// TAA: temporal anti-aliasing / stabilisation of the current colour with its own reprojected
+// previous output.
+//   - history arrives already resampled (a Reprojection instance with filter "catmullrom", fed
+//     by a history edge taa.color -> reproj.prevColor): bilinear resampling blurs, and the blur
+//     accumulates frame after frame (design.md section 7);
+//   - where historyLength is 0 (disocclusion) the history is dropped, not clipped: a clip box
+//     on high-contrast texture is too wide to reject a ghost;
+//   - the history is clipped (or clamped) in YCoCg to the current 3x3 neighbourhood's
+//     mean +- gamma * sigma (variance clipping, Salvi 2016, "An Excursion in Temporal
+//     Supersampling"; clip towards the mean as in Pedersen 2016, INSIDE), the box widened to
+//     contain the current colour so that a static input is a fixed point;
+//   - blend: out = alpha * C + (1 - alpha) * H, optionally with inverse-luminance weights
+//     (Karis 2014, "High Quality Temporal Supersampling") so a bright outlier cannot flicker.
+#include <kestrel/Kestrel.h>
+
+namespace kestrel::passes {
+
+class TaaPass final : public Pass {
+public:
+    static PassDesc describe();
+    explicit TaaPass(const ParamValues& params);
+    void resolve(ResolveContext& rc) override;
+    void execute(FrameContext& ctx, PassIO& io) override;
+
+private:
+    float alpha_ = 0.1f;
+    float gamma_ = 1.f;
+    bool clip_ = true;
+    bool antiFlicker_ = true;
+};
+
+}  // namespace kestrel::passes
