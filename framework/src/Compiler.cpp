@@ -95,7 +95,8 @@ private:
         }
     }
 
-    int findNode(const std::string& name, const std::string& path, const std::string& key) {
+    /// The node named `name`; else a diagnostic at `path` (the full JSON path) and -1.
+    int findNode(const std::string& name, const std::string& path) {
         auto it = byName_.find(name);
         if (it != byName_.end()) return it->second;
         std::vector<std::string> names;
@@ -103,7 +104,7 @@ private:
         std::string msg = "unknown pass '" + name + "'";
         std::string near = detail::nearestName(name, names);
         if (!near.empty()) msg += " (did you mean '" + near + "'?)";
-        diags_.push_back({path + "." + key, msg});
+        diags_.push_back({path, msg});
         return -1;
     }
 
@@ -112,8 +113,8 @@ private:
         for (size_t ei = 0; ei < edges.size(); ++ei) {
             const auto& e = edges[ei];
             std::string path = "edges[" + std::to_string(ei) + "]";
-            int s = findNode(e.fromPass, path, "from");
-            int d = findNode(e.toPass, path, "to");
+            int s = findNode(e.fromPass, path + ".from");
+            int d = findNode(e.toPass, path + ".to");
             int sp = -1, dp = -1;
             if (s >= 0 && node(s).type) {
                 sp = portIndex(descOf(s), e.fromPort, PortKind::Output);
@@ -174,7 +175,7 @@ private:
             std::string path = "outputs[" + std::to_string(i) + "]";
             auto dot = o.find('.');
             std::string pass = o.substr(0, dot);
-            int n = findNode(pass, "outputs", "[" + std::to_string(i) + "]");
+            int n = findNode(pass, path);
             if (n < 0 || !node(n).type) continue;
             if (dot == std::string::npos) {
                 rootNodes_.push_back(n);
