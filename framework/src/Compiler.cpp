@@ -268,7 +268,8 @@ private:
             r.port = portIndex(descOf(r.node), edge(e).fromPort, PortKind::Output);
             NodeState& s = node(r.node);
             if (s.outAbsent[size_t(r.port)]) {
-                if (why) *why = s.absentReason[size_t(r.port)];
+                // Name the producer so a chain of left-out passes reads back to its cause.
+                if (why) *why = portName(r) + ": " + s.absentReason[size_t(r.port)];
                 return std::nullopt;
             }
             int f = s.forward[size_t(r.port)];
