@@ -97,9 +97,11 @@ nlohmann::json paramValueToJson(const ParamValue& v) {
 namespace {
 std::string jsonTypeName(const nlohmann::json& j) { return std::string(j.type_name()); }
 
+// Range bounds as a user writes them: "[0, 1]", not "[0.0, 1.0]".
 std::string fmtNum(double d) {
-    std::string s = nlohmann::json(d).dump();
-    return s;
+    if (std::isfinite(d) && d == std::floor(d) && std::fabs(d) < 1e15)
+        return std::to_string(int64_t(d));
+    return nlohmann::json(d).dump();
 }
 }  // namespace
 
