@@ -261,6 +261,9 @@ ImageView Executor::output(std::string_view passPort) const {
         if (g.markedNames[i] == passPort) {
             int r = g.markedResource[i];
             const auto& res = g.resources[size_t(r)];
+            // Before the first frame no buffer exists: indexing them would read out of bounds.
+            if (impl_->extent.pixels() == 0)
+                throw Error("output '" + std::string(passPort) + "' read before any frame ran");
             // After the swap the frame just written is the "previous" history buffer.
             return impl_->viewOf(r, res.history);
         }
