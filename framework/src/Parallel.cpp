@@ -1,6 +1,7 @@
 #include "kestrel/Parallel.h"
 
 #include <algorithm>
+#include <exception>
 
 namespace kestrel {
 
@@ -54,9 +55,24 @@ void Parallel::forRange(int begin, int end, const std::function<void(int, int)>&
         for (int b = begin; b < end; b += grain) fn(b, std::min(end, b + grain));
         return;
     }
+    // An exception escaping a worker thread would terminate the process: catch the first one,
+    // skip the remaining chunks, and rethrow it on the calling thread once all workers are idle.
+    std::exception_ptr error;
+    std::mutex errorMutex;
+    std::atomic<bool> failed{false};
+    const std::function<void(int, int)> guarded = [&](int b, int e) {
+        if (failed.load(std::memory_order_relaxed)) return;
+        try {
+            fn(b, e);
+        } catch (...) {
+            std::lock_guard lock(errorMutex);
+            if (!error) error = std::current_exception();
+            failed.store(true, std::memory_order_relaxed);
+        }
+    };
     {
         std::lock_guard lock(mutex_);
-        job_ = &fn;
+        job_ = &guarded;
         jobBegin_ = begin;
         jobEnd_ = end;
         jobGrain_ = grain;
@@ -66,9 +82,12 @@ void Parallel::forRange(int begin, int end, const std::function<void(int, int)>&
     }
     wake_.notify_all();
     runChunks();
-    std::unique_lock lock(mutex_);
-    done_.wait(lock, [&] { return active_ == 0; });
-    job_ = nullptr;
+    {
+        std::unique_lock lock(mutex_);
+        done_.wait(lock, [&] { return active_ == 0; });
+        job_ = nullptr;
+    }
+    if (error) std::rethrow_exception(error);
 }
 
 }  // namespace kestrel
