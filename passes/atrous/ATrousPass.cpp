@@ -62,10 +62,10 @@ struct RowAcc {
     explicit RowAcc(int n) : w(size_t(n)), r(size_t(n)), g(size_t(n)), b(size_t(n)), v(size_t(n)) {}
 };
 
-/// Adds tap (dx, dy) to pixels [x0, x1) of one row: `c*` point at the row of p, `q*` at the row
-/// of q already shifted by dx, so index x addresses p = (x, y) and q = (x + dx, y + dy).
+/// Adds tap (dx, dy) to n consecutive pixels of one row: index x of `c*` addresses pixel p, of
+/// `q*` pixel q = p + (dx, dy), of `a*` p's accumulators.
 template <bool kId, bool kNormal, bool kVar>
-void accumulateTap(int x0, int x1, float kh, float dxf, float dyf, float sigmaZ, float sigmaN,
+void accumulateTap(int n, float kh, float dxf, float dyf, float sigmaZ, float sigmaN,
                    const float* __restrict cz, const float* __restrict cgx,
                    const float* __restrict cgy, const float* __restrict cl,
                    const float* __restrict cinvl, const float* __restrict cnx,
@@ -77,7 +77,7 @@ void accumulateTap(int x0, int x1, float kh, float dxf, float dyf, float sigmaZ,
                    const float* __restrict qg, const float* __restrict qb,
                    const float* __restrict qv, float* __restrict aw, float* __restrict ar,
                    float* __restrict ag, float* __restrict ab, float* __restrict av) {
-    for (int x = x0; x < x1; ++x) {
+    for (int x = 0; x < n; ++x) {
         // SVGF eq. 3: w_z = exp(-|z_p - z_q| / (sigma_z |grad z(p) . (p - q)| + eps))
         float denomZ =
             sigmaZ * std::fabs(cgx[x] * dxf + cgy[x] * dyf) + kEpsZRel * cz[x] + kEpsZAbs;
@@ -118,50 +118,59 @@ template <bool kId, bool kNormal, bool kVar>
 void filterRows(int y0, int y1, int width, int height, const ATrousPass::Settings& s,
                 float* const* P, const int32_t* ids, const ImageView& outColor,
                 const ImageView* outVar) {
-    RowAcc acc(width);
+    // Rows are cut into tiles so that the centre row's planes and the accumulators of a tile
+    // stay in L1 while the 24 taps sweep over it.
+    constexpr int kTile = 256;
+    RowAcc acc(std::min(width, kTile));
+    const float kc = kH[2] * kH[2];
     for (int y = y0; y < y1; ++y) {
         const size_t rowP = size_t(y) * size_t(width);
-        // The centre tap has w_z = w_n = w_l = 1 by definition (also on background pixels with a
-        // zero normal), so the weight sum never vanishes.
-        const float kc = kH[2] * kH[2];
-        for (int x = 0; x < width; ++x) {
-            acc.w[size_t(x)] = kc;
-            acc.r[size_t(x)] = kc * P[R][rowP + size_t(x)];
-            acc.g[size_t(x)] = kc * P[G][rowP + size_t(x)];
-            acc.b[size_t(x)] = kc * P[B][rowP + size_t(x)];
-            acc.v[size_t(x)] = kVar ? kc * kc * P[VAR][rowP + size_t(x)] : 0.f;
-        }
-        for (int j = 0; j < 5; ++j) {
-            const int dy = (j - 2) * s.step;
-            const int yq = y + dy;
-            if (yq < 0 || yq >= height) continue;  // taps outside the image are skipped
-            for (int i = 0; i < 5; ++i) {
-                if (i == 2 && j == 2) continue;
-                const int dx = (i - 2) * s.step;
-                const int x0 = std::max(0, -dx), x1 = std::min(width, width - dx);
-                if (x0 >= x1) continue;
-                // Shifted row pointers: index x of q* addresses pixel (x + dx, yq). Computed as
-                // an offset from the plane start so the pointer never leaves the allocation.
-                const ptrdiff_t offQ = ptrdiff_t(yq) * width + dx;
-                auto q = [&](int plane) { return P[plane] + offQ; };
-                const float kh = kH[i] * kH[j];
-                accumulateTap<kId, kNormal, kVar>(
-                    x0, x1, kh, float(dx), float(dy), s.sigmaZ, s.sigmaN, P[Z] + rowP, P[GX] + rowP,
-                    P[GY] + rowP, P[L] + rowP, P[INVL] + rowP, P[NX] + rowP, P[NY] + rowP,
-                    P[NZ] + rowP, kId ? ids + rowP : nullptr, q(Z), q(L), q(NX), q(NY), q(NZ),
-                    kId ? ids + offQ : nullptr, q(R), q(G), q(B), q(VAR), acc.w.data(),
-                    acc.r.data(), acc.g.data(), acc.b.data(), acc.v.data());
+        for (int t0 = 0; t0 < width; t0 += kTile) {
+            const int t1 = std::min(width, t0 + kTile), tn = t1 - t0;
+            // The centre tap has w_z = w_n = w_l = 1 by definition (also on background pixels
+            // with a zero normal), so the weight sum never vanishes.
+            for (int k = 0; k < tn; ++k) {
+                const size_t o = rowP + size_t(t0 + k);
+                acc.w[size_t(k)] = kc;
+                acc.r[size_t(k)] = kc * P[R][o];
+                acc.g[size_t(k)] = kc * P[G][o];
+                acc.b[size_t(k)] = kc * P[B][o];
+                acc.v[size_t(k)] = kVar ? kc * kc * P[VAR][o] : 0.f;
             }
-        }
-        float* oc[3] = {outColor.row(0, y), outColor.row(1, y), outColor.row(2, y)};
-        float* ov = outVar ? outVar->row(0, y) : nullptr;
-        for (int x = 0; x < width; ++x) {
-            const float inv = 1.f / acc.w[size_t(x)];  // >= kc > 0
-            oc[0][x] = acc.r[size_t(x)] * inv;
-            oc[1][x] = acc.g[size_t(x)] * inv;
-            oc[2][x] = acc.b[size_t(x)] * inv;
-            // SVGF eq. 2: Var = sum(w^2 Var_q) / (sum w)^2
-            if (ov) ov[x] = acc.v[size_t(x)] * inv * inv;
+            for (int j = 0; j < 5; ++j) {
+                const int dy = (j - 2) * s.step;
+                const int yq = y + dy;
+                if (yq < 0 || yq >= height) continue;  // taps outside the image are skipped
+                for (int i = 0; i < 5; ++i) {
+                    if (i == 2 && j == 2) continue;
+                    const int dx = (i - 2) * s.step;
+                    // Pixels x of this tile whose tap x + dx is inside the image.
+                    const int xs = std::max(t0, -dx), xe = std::min(t1, width - dx);
+                    if (xs >= xe) continue;
+                    const size_t cp = rowP + size_t(xs);
+                    const size_t qp = size_t(yq) * size_t(width) + size_t(xs + dx);
+                    const size_t ap = size_t(xs - t0);
+                    auto c = [&](int plane) { return P[plane] + cp; };
+                    auto q = [&](int plane) { return P[plane] + qp; };
+                    accumulateTap<kId, kNormal, kVar>(
+                        xe - xs, kH[i] * kH[j], float(dx), float(dy), s.sigmaZ, s.sigmaN, c(Z),
+                        c(GX), c(GY), c(L), c(INVL), c(NX), c(NY), c(NZ), kId ? ids + cp : nullptr,
+                        q(Z), q(L), q(NX), q(NY), q(NZ), kId ? ids + qp : nullptr, q(R), q(G), q(B),
+                        q(VAR), acc.w.data() + ap, acc.r.data() + ap, acc.g.data() + ap,
+                        acc.b.data() + ap, acc.v.data() + ap);
+                }
+            }
+            float* oc[3] = {outColor.row(0, y) + t0, outColor.row(1, y) + t0,
+                            outColor.row(2, y) + t0};
+            float* ov = outVar ? outVar->row(0, y) + t0 : nullptr;
+            for (int k = 0; k < tn; ++k) {
+                const float inv = 1.f / acc.w[size_t(k)];  // >= kc > 0
+                oc[0][k] = acc.r[size_t(k)] * inv;
+                oc[1][k] = acc.g[size_t(k)] * inv;
+                oc[2][k] = acc.b[size_t(k)] * inv;
+                // SVGF eq. 2: Var = sum(w^2 Var_q) / (sum w)^2
+                if (ov) ov[k] = acc.v[size_t(k)] * inv * inv;
+            }
         }
     }
 }
