@@ -1,0 +1,118 @@
+// Lifetime-based aliasing: transient memory is reused once its last reader has run, never
+// under a pass's own input, never under a resource still to be read.
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include "TestPasses.h"
+
+namespace kestrel::enginetest {
+namespace {
+
+/// `count` NeighbourAverage passes after a Ramp source; the last one is the graph output.
+std::string chainGraph(int count) {
+    std::string passes = R"({"name": "p0", "type": "Ramp"})";
+    std::string edges;
+    for (int i = 1; i <= count; ++i) {
+        std::string n = "p" + std::to_string(i), prev = "p" + std::to_string(i - 1);
+        passes += R"(, {"name": ")" + n + R"(", "type": "NeighbourAverage"})";
+        edges += std::string(i > 1 ? ", " : "") + R"({"from": ")" + prev + R"(.out", "to": ")" + n +
+                 R"(.in"})";
+    }
+    return R"({"kestrel": 1, "passes": [)" + passes + R"(], "edges": [)" + edges +
+           R"(], "outputs": ["p)" + std::to_string(count) + R"(.out"]})";
+}
+
+TEST(Memory, ChainOfFiftyPassesUsesTwoPlanes) {
+    Registry r = testRegistry();
+    auto g = compileText(chainGraph(49), r);  // 50 passes, 50 float resources
+    ASSERT_EQ(g->executionOrder().size(), 50u);
+    EXPECT_EQ(g->unaliasedPlaneCount(), 50);
+    // Ping-pong: each pass needs its input and its output alive, nothing more.
+    EXPECT_EQ(g->transientPlaneCount(), 2);
+
+    const Extent ext{9, 3};
+    Parallel par(1);
+    Executor ex(*g, par, {}, ext);
+    ex.runFrame(1);
+    EXPECT_EQ(ex.memory().transientPlanes, 2u);
+    EXPECT_EQ(ex.memory().historyPlanes, 0u);
+    EXPECT_EQ(ex.memory().bytes, 2 * ext.pixels() * sizeof(float));
+
+    // Same arithmetic without the engine: 49 out-of-place neighbour averages of the ramp.
+    // In-place execution (output aliasing input) would mix already-averaged values in.
+    std::vector<float> ref(ext.pixels()), tmp(ext.pixels());
+    for (int y = 0; y < ext.height; ++y)
+        for (int x = 0; x < ext.width; ++x) ref[size_t(y * ext.width + x)] = float(x + 10 * y);
+    for (int k = 0; k < 49; ++k) {
+        for (int y = 0; y < ext.height; ++y) {
+            const float* s = &ref[size_t(y * ext.width)];
+            float* d = &tmp[size_t(y * ext.width)];
+            d[0] = s[0];
+            for (int x = 1; x < ext.width; ++x) d[x] = 0.5f * (s[x] + s[x - 1]);
+        }
+        std::swap(ref, tmp);
+    }
+    ImageView out = ex.output("p49.out");
+    for (int y = 0; y < ext.height; ++y)
+        for (int x = 0; x < ext.width; ++x)
+            ASSERT_EQ(out.at(0, x, y), ref[size_t(y * ext.width + x)]) << x << "," << y;
+}
+
+TEST(Memory, NoResourceSharesPlanesWithAnotherAliveAtTheSameTime) {
+    Registry r = testRegistry();
+    auto g = compileText(chainGraph(49), r);
+    const auto& res = g->resources();
+    for (size_t i = 0; i < res.size(); ++i)
+        for (size_t j = i + 1; j < res.size(); ++j) {
+            // Lifetimes [firstUse, lastUse] that overlap must not share a plane.
+            bool overlap = res[i].firstUse <= res[j].lastUse && res[j].firstUse <= res[i].lastUse;
+            if (!overlap) continue;
+            for (int a : res[i].planes)
+                for (int b : res[j].planes)
+                    EXPECT_NE(a, b) << res[i].producer << " and " << res[j].producer;
+        }
+}
+
+TEST(Memory, ResourceIsKeptUntilItsLastReader) {
+    Registry r = testRegistry();
+    // ramp is read by `avg` (early) and by `sum` (last): b and avg must not land on its plane.
+    auto g = compileText(R"({"kestrel": 1, "passes": [{"name": "ramp", "type": "Ramp"},
+        {"name": "b", "type": "AddOne"}, {"name": "avg", "type": "NeighbourAverage"},
+        {"name": "c", "type": "AddOne"}, {"name": "sum", "type": "Sum"}],
+        "edges": [{"from": "ramp.out", "to": "b.in"}, {"from": "b.out", "to": "avg.in"},
+                  {"from": "avg.out", "to": "c.in"}, {"from": "c.out", "to": "sum.a"},
+                  {"from": "ramp.out", "to": "sum.b"}],
+        "outputs": ["sum.out"]})",
+                         r);
+    EXPECT_EQ(g->unaliasedPlaneCount(), 5);
+    EXPECT_EQ(g->transientPlaneCount(), 3);
+    Parallel par(1);
+    Executor ex(*g, par, {}, Extent{4, 2});
+    ex.runFrame(1);
+    ImageView out = ex.output("sum.out");
+    for (int y = 0; y < 2; ++y)
+        for (int x = 0; x < 4; ++x) {
+            float ramp = float(x + 10 * y), left = float(x > 0 ? x - 1 + 10 * y : 10 * y);
+            float expected = (0.5f * ((ramp + 1.f) + (left + 1.f)) + 1.f) + ramp;
+            EXPECT_EQ(out.at(0, x, y), expected) << x << "," << y;
+        }
+}
+
+TEST(Memory, MultiChannelResourcesGetDistinctPlanesPerChannel) {
+    Registry r = testRegistry();
+    auto g = compileText(R"({"kestrel": 1, "passes": [{"name": "c", "type": "Color"}],
+        "outputs": ["c.color"]})",
+                         r);
+    ASSERT_EQ(g->resources().size(), 1u);
+    EXPECT_EQ(g->resources()[0].planes, (std::vector<int>{0, 1, 2}));
+    Parallel par(1);
+    Executor ex(*g, par, {}, Extent{2, 2});
+    ex.runFrame(1);
+    ImageView v = ex.output("c.color");
+    for (int ch = 0; ch < 3; ++ch) EXPECT_EQ(v.at(ch, 1, 1), float(ch));
+}
+
+}  // namespace
+}  // namespace kestrel::enginetest
