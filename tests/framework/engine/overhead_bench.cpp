@@ -1,6 +1,8 @@
 // Per-frame engine overhead: a graph of 10 trivial passes on a 1x1 image, so the time per
 // iteration is the executor's own bookkeeping (beginFrame calls, binding, timing, swap).
 // Built as `engine_overhead_bench`, not registered with ctest: run it by hand.
+// Measured (Release, -march=native, 2 shared cores at load average ~14): 1.4 us CPU per frame
+// (0.14 us per pass), 4.9 us wall, for 1 and 2 threads alike (1x1 never reaches the pool).
 #include <benchmark/benchmark.h>
 
 #include <string>
