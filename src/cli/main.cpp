@@ -1,5 +1,7 @@
 // kestrel: compile and run render-pass graphs over image sequences.
+#include <algorithm>
 #include <iostream>
+#include <utility>
 
 #include "Commands.h"
 #include "Common.h"
@@ -10,6 +12,11 @@ int main(int argc, char** argv) {
                  "kestrel"};
     app.set_version_flag("--version", std::string("kestrel ") + KESTREL_VERSION);
     app.require_subcommand(0, 1);
+    // Usage errors read like every other error: one "error:" line, then a hint. Set before the
+    // subcommands are added: they copy it.
+    app.failure_message([](const CLI::App*, const CLI::Error& e) {
+        return "error: " + std::string(e.what()) + "\nRun with --help for more information.\n";
+    });
     bool verbose = false;
     app.add_flag("-v,--verbose", verbose, "More detail in logs and error messages")->configurable(false);
 
@@ -29,6 +36,20 @@ int main(int argc, char** argv) {
 #endif
     app.footer("With no subcommand, `kestrel` runs graphs/svgf.json on the built-in scene.");
 
+    // A first word that is not an option must name a subcommand ("kestrel rnu" is not a graph).
+    for (int i = 1; i < argc; ++i) {
+        std::string word = argv[i];
+        if (!word.empty() && word[0] == '-') continue;
+        const auto subs = std::as_const(app).get_subcommands([](const CLI::App*) { return true; });
+        if (std::none_of(subs.begin(), subs.end(), [&](const CLI::App* s) { return s->check_name(word); })) {
+            std::string names;
+            for (const auto* sub : subs) names += (names.empty() ? "" : ", ") + sub->get_name();
+            std::cerr << "error: unknown subcommand '" << word << "' (commands: " << names
+                      << ")\nRun with --help for more information.\n";
+            return 2;
+        }
+        break;
+    }
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
