@@ -117,8 +117,30 @@ GraphDesc prepareGraph(const GraphOptions& o, const Registry& reg) {
     return g;
 }
 
-void printGraphError(const GraphError& e) {
-    for (const auto& d : e.diagnostics()) std::cerr << "error: " << d.str() << "\n";
+namespace {
+/// "taa.alpha" for "passes[1].params.alpha", "taa" for "passes[1]..." (empty if neither).
+std::string passLabel(const std::string& path, const GraphDesc& g) {
+    size_t index = 0;
+    int consumed = 0;
+    if (std::sscanf(path.c_str(), "passes[%zu]%n", &index, &consumed) != 1 || consumed == 0 ||
+        index >= g.passes.size())
+        return {};
+    std::string label = g.passes[index].name;
+    const std::string rest = path.substr(size_t(consumed));
+    const std::string params = ".params.";
+    if (rest.rfind(params, 0) == 0) label += "." + rest.substr(params.size());
+    return label;
+}
+}  // namespace
+
+void printGraphError(const GraphError& e, const GraphDesc* graph) {
+    for (const auto& d : e.diagnostics()) {
+        std::string label = graph ? passLabel(d.path, *graph) : std::string();
+        if (label.empty())
+            std::cerr << "error: " << d.str() << "\n";
+        else
+            std::cerr << "error: " << d.path << " (" << label << "): " << d.message << "\n";
+    }
 }
 
 std::vector<int64_t> parseFrameList(const std::string& text) {

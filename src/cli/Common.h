@@ -41,8 +41,9 @@ struct GraphOptions {
 /// built-in scene (generated on first use); a sink without a path writes under outDir.
 GraphDesc prepareGraph(const GraphOptions& options, const Registry& registry);
 
-/// Prints every diagnostic of a GraphError on stderr, one per line.
-void printGraphError(const GraphError& e);
+/// Prints every diagnostic of a GraphError on stderr, one per line. With the graph, a JSON path
+/// into a pass also names it as the user writes it in --set: "passes[1].params.alpha (taa.alpha)".
+void printGraphError(const GraphError& e, const GraphDesc* graph = nullptr);
 
 /// Parses "1-100", "1-100x2", "3,4,10-20x2" into frame numbers (Error naming the text).
 std::vector<int64_t> parseFrameList(const std::string& text);

@@ -25,12 +25,13 @@ void addGraphCommand(CLI::App& app, Action& action) {
         action = [o, dot, outFile]() -> int {
             std::unique_ptr<Plugins> plugins;
             std::unique_ptr<CompiledGraph> compiled;
+            GraphDesc g;
             try {
                 plugins = loadPlugins();
-                GraphDesc g = prepareGraph(*o, plugins->registry);
+                g = prepareGraph(*o, plugins->registry);
                 compiled = compileGraph(g, plugins->registry);
             } catch (const GraphError& e) {
-                printGraphError(e);
+                printGraphError(e, &g);
                 return 2;
             } catch (const Error& e) {
                 std::cerr << "error: " << e.what() << "\n";

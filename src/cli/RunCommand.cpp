@@ -47,9 +47,10 @@ int runGraph(const RunOptions& o) {
     std::unique_ptr<CompiledGraph> compiled;
     std::vector<int64_t> frames;
     Extent size{};
+    GraphDesc g;
     try {
         plugins = loadPlugins();
-        GraphDesc g = prepareGraph(o.graph, plugins->registry);
+        g = prepareGraph(o.graph, plugins->registry);
         if (!o.frames.empty()) frames = parseFrameList(o.frames);
         if (!o.size.empty()) {
             if (std::sscanf(o.size.c_str(), "%dx%d", &size.width, &size.height) != 2 ||
@@ -60,7 +61,7 @@ int runGraph(const RunOptions& o) {
         copt.firstFrame = frames.empty() ? 0 : frames.front();
         compiled = compileGraph(g, plugins->registry, copt);
     } catch (const GraphError& e) {
-        printGraphError(e);
+        printGraphError(e, &g);
         return 2;
     } catch (const Error& e) {
         std::cerr << "error: " << e.what() << "\n";

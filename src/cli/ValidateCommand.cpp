@@ -11,9 +11,10 @@ void addValidateCommand(CLI::App& app, Action& action) {
     cmd->add_option("GRAPH", *graph, "Graph JSON file")->required();
     cmd->callback([&action, graph] {
         action = [graph]() -> int {
+          GraphDesc g;
           try {
             auto plugins = loadPlugins();
-            GraphDesc g = loadGraphFile(*graph);
+            g = loadGraphFile(*graph);
             CompileOptions opt;
             opt.validateOnly = true;
             auto compiled = compileGraph(g, plugins->registry, opt);
@@ -21,7 +22,7 @@ void addValidateCommand(CLI::App& app, Action& action) {
                       << " edges)\n";
             return 0;
           } catch (const GraphError& e) {
-            printGraphError(e);
+            printGraphError(e, &g);
             return 2;
           } catch (const Error& e) {
             std::cerr << "error: " << e.what() << "\n";
