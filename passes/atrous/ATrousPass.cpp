@@ -114,6 +114,41 @@ void lumaRow(const float* __restrict r, const float* __restrict g, const float* 
     for (int x = 0; x < n; ++x) l[x] = px::luminance(r[x], g[x], b[x]);
 }
 
+/// Depth derivatives of one row (px::minAbsDiff), border columns/rows one-sided.
+void gradientRow(const float* __restrict z, const float* __restrict za, const float* __restrict zb,
+                 float* __restrict gx, float* __restrict gy, int n, bool up, bool down) {
+    for (int x = 0; x < n; ++x) gy[x] = px::minAbsDiff(za[x], z[x], zb[x], up, down);
+    if (n < 2) {
+        if (n == 1) gx[0] = 0.f;
+        return;
+    }
+    gx[0] = z[1] - z[0];
+    for (int x = 1; x + 1 < n; ++x) {
+        const float b = z[x] - z[x - 1], f = z[x + 1] - z[x];
+        gx[x] = std::fabs(b) <= std::fabs(f) ? b : f;
+    }
+    gx[n - 1] = z[n - 1] - z[n - 2];
+}
+
+void verticalRow(const float* __restrict a, const float* __restrict c, const float* __restrict b,
+                 float wa, float wb, float norm, float* __restrict out, int n) {
+    for (int x = 0; x < n; ++x) out[x] = (wa * a[x] + 0.5f * c[x] + wb * b[x]) * norm;
+}
+
+/// Horizontal (1/4, 1/2, 1/4) of the vertically filtered variance, then the luminance weight's
+/// per-pixel factor 1 / (sigma_l sqrt(g3x3(Var)) + eps) (SVGF eq. 5).
+void horizontalInvL(const float* __restrict v, float* __restrict invL, int n, float sigmaL) {
+    auto finish = [&](float g) { return 1.f / (sigmaL * std::sqrt(std::max(0.f, g)) + kEpsL); };
+    if (n == 1) {
+        invL[0] = finish(v[0]);
+        return;
+    }
+    invL[0] = finish((0.5f * v[0] + 0.25f * v[1]) / 0.75f);
+    for (int x = 1; x + 1 < n; ++x)
+        invL[x] = finish(0.25f * v[x - 1] + 0.5f * v[x] + 0.25f * v[x + 1]);
+    invL[n - 1] = finish((0.5f * v[n - 1] + 0.25f * v[n - 2]) / 0.75f);
+}
+
 template <bool kId, bool kNormal, bool kVar>
 void filterRows(int y0, int y1, int width, int height, const ATrousPass::Settings& s,
                 float* const* P, const int32_t* ids, const ImageView& outColor,
@@ -214,35 +249,26 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
     // renormalised at the image border.
     const float sigmaL = s_.sigmaL, sigmaColor = s_.sigmaColor;
     ctx.parallelRows(height, [&](int y0, int y1) {
-        static constexpr float g3[3] = {0.25f, 0.5f, 0.25f};
+        std::vector<float> vcol(static_cast<size_t>(width));
         for (int y = y0; y < y1; ++y) {
             const size_t o = size_t(y) * size_t(width);
             const bool up = y > 0, down = y + 1 < height;
             const float* z = P[Z] + o;
-            for (int x = 0; x < width; ++x) {
-                P[GX][o + x] = px::minAbsDiff(x > 0 ? z[x - 1] : 0.f, z[x],
-                                              x + 1 < width ? z[x + 1] : 0.f, x > 0, x + 1 < width);
-                P[GY][o + x] = px::minAbsDiff(up ? z[x - width] : 0.f, z[x],
-                                              down ? z[x + width] : 0.f, up, down);
-                if (!var) {
-                    P[INVL][o + x] = 1.f / (sigmaColor + kEpsL);
-                    continue;
-                }
-                float sum = 0.f, sumW = 0.f;
-                for (int j = -1; j <= 1; ++j) {
-                    const int yy = y + j;
-                    if (yy < 0 || yy >= height) continue;
-                    const float* vr = P[VAR] + size_t(yy) * size_t(width);
-                    for (int i = -1; i <= 1; ++i) {
-                        const int xx = x + i;
-                        if (xx < 0 || xx >= width) continue;
-                        const float gw = g3[i + 1] * g3[j + 1];
-                        sum += gw * vr[xx];
-                        sumW += gw;
-                    }
-                }
-                P[INVL][o + x] = 1.f / (sigmaL * std::sqrt(std::max(0.f, sum / sumW)) + kEpsL);
+            gradientRow(z, up ? z - width : z, down ? z + width : z, P[GX] + o, P[GY] + o, width,
+                        up, down);
+            if (!var) {
+                std::fill(P[INVL] + o, P[INVL] + o + width, 1.f / (sigmaColor + kEpsL));
+                continue;
             }
+            // Separable 3x3 Gaussian (1/4, 1/2, 1/4)^2: vertical, then horizontal; weights of
+            // taps outside the image are dropped and the rest renormalised.
+            const float* v = P[VAR] + o;
+            const float* va = up ? v - width : v;
+            const float* vb = down ? v + width : v;
+            const float wa = up ? 0.25f : 0.f, wb = down ? 0.25f : 0.f;
+            const float vNorm = 1.f / (0.5f + wa + wb);
+            verticalRow(va, v, vb, wa, wb, vNorm, vcol.data(), width);
+            horizontalInvL(vcol.data(), P[INVL] + o, width, sigmaL);
         }
     });
     // Pass 3: the filter itself.
