@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "DefaultScene.h"
+#include "kestrel/FramePattern.h"
 #include "kestrel/Log.h"
 
 namespace kestrel::cli {
@@ -144,37 +145,11 @@ void printGraphError(const GraphError& e, const GraphDesc* graph) {
 }
 
 std::vector<int64_t> parseFrameList(const std::string& text) {
-    std::vector<int64_t> frames;
-    auto bad = [&](const std::string& why) {
-        return Error("--frames " + text + ": " + why +
-                     " (expected e.g. 1-100, 1-100x2 or 3,4,10-20x2)");
-    };
-    size_t start = 0;
-    while (start <= text.size()) {
-        size_t comma = text.find(',', start);
-        std::string item = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
-        if (item.empty()) throw bad("empty item");
-        long long a = 0, b = 0, step = 1;
-        char dash = 0, x = 0;
-        int consumed = 0;
-        if (std::sscanf(item.c_str(), "%lld%n", &a, &consumed) == 1 && size_t(consumed) == item.size()) {
-            frames.push_back(a);
-        } else if (std::sscanf(item.c_str(), "%lld%c%lld%n", &a, &dash, &b, &consumed) == 3 &&
-                   dash == '-' && size_t(consumed) == item.size()) {
-            if (b < a) throw bad("range end before start");
-            for (long long f = a; f <= b; ++f) frames.push_back(f);
-        } else if (std::sscanf(item.c_str(), "%lld%c%lld%c%lld%n", &a, &dash, &b, &x, &step, &consumed) == 5 &&
-                   dash == '-' && x == 'x' && size_t(consumed) == item.size()) {
-            if (b < a) throw bad("range end before start");
-            if (step <= 0) throw bad("step must be positive");
-            for (long long f = a; f <= b; f += step) frames.push_back(f);
-        } else {
-            throw bad("cannot read '" + item + "'");
-        }
-        if (comma == std::string::npos) break;
-        start = comma + 1;
+    try {
+        return parseFrameRange(text);
+    } catch (const Error& e) {
+        throw Error(std::string("--frames: ") + e.what());
     }
-    return frames;
 }
 
 }  // namespace kestrel::cli
