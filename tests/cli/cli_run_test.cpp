@@ -1,0 +1,169 @@
+// kestrel run, end to end on a tiny generated scene: missing input frames (fail or skip),
+// output folders checked before frame 1, --resume and --warmup.
+#include <cmath>
+
+#include "CliRunner.h"
+#include "ExrCheck.h"
+
+using namespace clitest;
+
+namespace {
+
+class CliRun : public ::testing::Test {
+protected:
+    void SetUp() override {
+        // 32x24, 8 frames: about 0.1 s to generate, enough for warm-up and resume.
+        if (!makeScene(box, box.work() / "scene", 32, 24, 8))
+            GTEST_SKIP() << "no scenegen in this build";
+    }
+    CliResult run(const std::string& graph, std::vector<std::string> extra) {
+        std::vector<std::string> args = {"run",       (graphDir() / graph).string(),
+                                         "--input",   "scene/noisy/frame_####.exr",
+                                         "--threads", "2"};
+        args.insert(args.end(), extra.begin(), extra.end());
+        return box.run(args);
+    }
+    /// Lines of the run log reporting a frame that was written (not warm-up).
+    static int writtenFrameLines(const CliResult& r) {
+        int n = 0;
+        std::istringstream s(r.err);
+        for (std::string l; std::getline(s, l);)
+            if (l.find("frame ") != std::string::npos && l.find(" ms") != std::string::npos &&
+                l.find("warm-up") == std::string::npos && l.find("frames run") == std::string::npos)
+                ++n;
+        return n;
+    }
+    Sandbox box;
+};
+
+}  // namespace
+
+TEST_F(CliRun, RunsAndWritesEveryFrame) {
+    auto r = run("copy.json", {"--frames", "1-3", "--output", "out/c.####.exr"});
+    ASSERT_EQ(r.code, 0) << r.all();
+    EXPECT_TRUE(r.errorLines().empty()) << r.all();
+    EXPECT_FALSE(looksLikeCrash(r.all()));
+    EXPECT_EQ(countFiles(box.work() / "out", ".exr"), 3);
+    RgbImage img;
+    std::string why;
+    ASSERT_TRUE(readRgb((box.work() / "out" / "c.0002.exr").string(), img, &why)) << why;
+    EXPECT_EQ(img.width, 32);
+    EXPECT_EQ(img.height, 24);
+}
+
+TEST_F(CliRun, MissingInputFrameFailsNamingFileAndFrame) {
+    fs::remove(box.work() / "scene" / "noisy" / "frame_0003.exr");
+    auto r = run("copy.json", {"--frames", "1-5", "--output", "out/c.####.exr"});
+    EXPECT_EQ(r.code, 1) << r.all();
+    auto lines = r.errorLines();
+    ASSERT_EQ(lines.size(), 1u) << r.all();
+    EXPECT_NE(lines[0].find("frame_0003.exr"), std::string::npos) << lines[0];
+    EXPECT_NE(lines[0].find("frame 3"), std::string::npos) << lines[0];
+    EXPECT_FALSE(looksLikeCrash(r.all()));
+    // Frames before the gap were written and are complete; nothing after it.
+    EXPECT_TRUE(fs::exists(box.work() / "out" / "c.0002.exr"));
+    EXPECT_FALSE(fs::exists(box.work() / "out" / "c.0004.exr"));
+    EXPECT_EQ(countTempFiles(box.work() / "out"), 0);
+}
+
+TEST_F(CliRun, SkipBadFramesContinues) {
+    fs::remove(box.work() / "scene" / "noisy" / "frame_0003.exr");
+    auto r =
+        run("taa.json", {"--frames", "1-5", "--output", "out/t.####.exr", "--skip-bad-frames"});
+    EXPECT_EQ(r.code, 0) << r.all();
+    EXPECT_NE(r.err.find("frame_0003.exr"), std::string::npos) << "the skip is not reported\n"
+                                                               << r.all();
+    EXPECT_FALSE(looksLikeCrash(r.all()));
+    for (int f : {1, 2, 4, 5})
+        EXPECT_TRUE(fs::exists(box.work() / "out" / frameName("t.", f, ".exr"))) << f;
+    EXPECT_FALSE(fs::exists(box.work() / "out" / "t.0003.exr"));
+}
+
+TEST_F(CliRun, UnwritableOutputFailsBeforeFrameOne) {
+    // A regular file where the output folder should be: no process (not even root) can create
+    // the folder, so this is portable where chmod is not.
+    writeText(box.work() / "blocker", "not a folder");
+    auto r = run("copy.json", {"--frames", "1-3", "--output", "blocker/sub/c.####.exr"});
+    EXPECT_EQ(r.code, 1) << r.all();
+    auto lines = r.errorLines();
+    ASSERT_EQ(lines.size(), 1u) << r.all();
+    EXPECT_NE(lines[0].find("blocker"), std::string::npos) << lines[0];
+    // No frame ran: the per-frame log line for frame 1 never appears.
+    EXPECT_EQ(writtenFrameLines(r), 0) << r.all();
+    EXPECT_FALSE(looksLikeCrash(r.all()));
+}
+
+TEST_F(CliRun, ResumeSkipsWrittenFrames) {
+    auto first = run("taa.json", {"--frames", "1-6", "--output", "out/t.####.exr"});
+    ASSERT_EQ(first.code, 0) << first.all();
+    ASSERT_EQ(countFiles(box.work() / "out", ".exr"), 6);
+    // An interrupted run: frames 5 and 6 are missing. Date the survivors back so a rewrite shows.
+    fs::remove(box.work() / "out" / "t.0005.exr");
+    fs::remove(box.work() / "out" / "t.0006.exr");
+    const auto old = fs::file_time_type::clock::now() - std::chrono::hours(1);
+    for (int f = 1; f <= 4; ++f)
+        fs::last_write_time(box.work() / "out" / frameName("t.", f, ".exr"), old);
+
+    auto r = run("taa.json", {"--frames", "1-6", "--output", "out/t.####.exr", "--resume"});
+    ASSERT_EQ(r.code, 0) << r.all();
+    EXPECT_EQ(writtenFrameLines(r), 2) << r.all();
+    for (int f = 1; f <= 4; ++f)
+        EXPECT_EQ(fs::last_write_time(box.work() / "out" / frameName("t.", f, ".exr")), old)
+            << "frame " << f << " rewritten";
+    EXPECT_EQ(countFiles(box.work() / "out", ".exr"), 6);
+
+    // History was warmed up on frames 1-4, so the resumed frames equal the uninterrupted run's.
+    auto full = run("taa.json", {"--frames", "1-6", "--output", "full/t.####.exr"});
+    ASSERT_EQ(full.code, 0) << full.all();
+    for (int f : {5, 6}) {
+        RgbImage a, b;
+        ASSERT_TRUE(readRgb((box.work() / "out" / frameName("t.", f, ".exr")).string(), a));
+        ASSERT_TRUE(readRgb((box.work() / "full" / frameName("t.", f, ".exr")).string(), b));
+        ASSERT_EQ(a.rgb.size(), b.rgb.size());
+        for (size_t i = 0; i < a.rgb.size(); ++i)
+            ASSERT_EQ(a.rgb[i], b.rgb[i]) << "frame " << f << " value " << i;
+    }
+
+    // Everything written: nothing to do, still success.
+    auto again = run("taa.json", {"--frames", "1-6", "--output", "out/t.####.exr", "--resume"});
+    EXPECT_EQ(again.code, 0) << again.all();
+    EXPECT_EQ(writtenFrameLines(again), 0) << again.all();
+}
+
+TEST_F(CliRun, WarmupChunkMatchesUnsplitRun) {
+    // TAA carries history from frame to frame. A chunk 5-8 with --warmup 4 replays frames 1-4
+    // without writing them, so frames 5-8 see exactly the history of the unsplit run 1-8.
+    auto whole = run("taa.json", {"--frames", "1-8", "--output", "whole/t.####.exr"});
+    ASSERT_EQ(whole.code, 0) << whole.all();
+    auto chunk =
+        run("taa.json", {"--frames", "5-8", "--warmup", "4", "--output", "chunk/t.####.exr"});
+    ASSERT_EQ(chunk.code, 0) << chunk.all();
+    EXPECT_EQ(countFiles(box.work() / "chunk", ".exr"), 4) << "warm-up frames must not be written";
+    EXPECT_FALSE(fs::exists(box.work() / "chunk" / "t.0004.exr"));
+
+    // Tolerance: 0. Same frames, same order, same float operations, and results never depend on
+    // the thread count (team rule), so the written float32 files must be bit-identical. Any
+    // difference means the warm-up did not rebuild the history (e.g. a short warm-up or reset).
+    // Without warm-up the chunk differs (checked below), so this comparison has teeth.
+    double maxDiff = 0;
+    for (int f = 5; f <= 8; ++f) {
+        RgbImage a, b;
+        ASSERT_TRUE(readRgb((box.work() / "whole" / frameName("t.", f, ".exr")).string(), a));
+        ASSERT_TRUE(readRgb((box.work() / "chunk" / frameName("t.", f, ".exr")).string(), b));
+        ASSERT_EQ(a.rgb.size(), b.rgb.size());
+        for (size_t i = 0; i < a.rgb.size(); ++i)
+            maxDiff = std::max(maxDiff, double(std::fabs(a.rgb[i] - b.rgb[i])));
+    }
+    EXPECT_EQ(maxDiff, 0.0);
+
+    auto cold = run("taa.json", {"--frames", "5-8", "--output", "cold/t.####.exr"});
+    ASSERT_EQ(cold.code, 0) << cold.all();
+    RgbImage a, b;
+    ASSERT_TRUE(readRgb((box.work() / "whole" / "t.0005.exr").string(), a));
+    ASSERT_TRUE(readRgb((box.work() / "cold" / "t.0005.exr").string(), b));
+    double coldDiff = 0;
+    for (size_t i = 0; i < a.rgb.size(); ++i)
+        coldDiff = std::max(coldDiff, double(std::fabs(a.rgb[i] - b.rgb[i])));
+    EXPECT_GT(coldDiff, 1e-3)
+        << "without warm-up frame 5 should differ (1-spp noise is not averaged)";
+}
