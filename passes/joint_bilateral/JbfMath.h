@@ -1,6 +1,6 @@
 #pragma once
 // Branch-free scalar math for the joint bilateral tap loop, written so that GCC/Clang
-// auto-vectorise it (no libm calls, no errno): exp of a non-positive argument and acos^2.
+// auto-vectorise it (no libm calls, no errno): 2^t of a non-positive argument and acos^2.
 #include <algorithm>
 #include <bit>
 #include <cmath>
@@ -8,25 +8,24 @@
 
 namespace kestrel::passes::jbf {
 
-/// e^a for a <= 0, 0 below -87 (where e^a is no longer a normal float). Cephes expf: Cody-Waite
-/// range reduction a = n ln2 + r, degree-6 polynomial on |r| <= ln2/2; relative error < 2e-7.
-inline float expNonPositive(float a) {
-    const float ac = std::max(a, -87.f);
-    // Round to nearest by the 1.5 * 2^23 trick (vectorises; exact for |t| < 2^22).
-    const float t = ac * 1.44269504088896341f;
-    const float n = (t + 12582912.f) - 12582912.f;
-    float r = ac - n * 0.693359375f;
-    r = r + n * 2.12194440e-4f;
-    float p = 1.9875691500e-4f;
-    p = p * r + 1.3981999507e-3f;
-    p = p * r + 8.3334519073e-3f;
-    p = p * r + 4.1665795894e-2f;
-    p = p * r + 1.6666665459e-1f;
-    p = p * r + 5.0000001201e-1f;
-    const float y = p * r * r + r + 1.f;
+/// 2^t for t <= 0, exactly 0 below -126 (where 2^t is no longer a normal float). Cephes exp2f:
+/// t = n + f with n integer and |f| <= 1/2, 2^f = 1 + f P(f) with a degree-5 P; relative error
+/// < 2e-7. Base 2 because the callers fold log2(e) into their constants: one multiply less.
+inline float exp2NonPositive(float t) {
+    const float tc = std::max(t, -126.f);
+    // Round to nearest by the 1.5 * 2^23 trick (vectorises; exact for |tc| < 2^22).
+    const float n = (tc + 12582912.f) - 12582912.f;
+    const float f = tc - n;
+    float p = 1.535336188319500e-4f;
+    p = p * f + 1.339887440266574e-3f;
+    p = p * f + 9.618437357674640e-3f;
+    p = p * f + 5.550332471162809e-2f;
+    p = p * f + 2.402264791363012e-1f;
+    p = p * f + 6.931472028550421e-1f;
+    const float y = p * f + 1.f;
     const float scale = std::bit_cast<float>((int32_t(n) + 127) << 23);  // 2^n, n in [-126, 0]
     const float v = y * scale;
-    return a > -87.f ? v : 0.f;
+    return t > -126.f ? v : 0.f;
 }
 
 /// Abramowitz & Stegun 4.4.46: acos(x) = sqrt(1 - x) * poly(x) + e, |e| <= 2e-8 on [0, 1].

@@ -133,7 +133,7 @@ void filterChunk(const GuidePlanes& g, const JointBilateralPass::Settings& s, in
                 // D_plane^2 = nd^2 / dd; nd = 0 whenever dd = 0, so the floor makes it 0 there.
                 const float plane2 = nd * nd / std::max(dd, 1e-30f);
                 const float e = spatial + color2 * kc + normal2 * kn + plane2 * kd;
-                float wgt = jbf::expNonPositive(-e);
+                float wgt = jbf::exp2NonPositive(-e);  // constants carry log2(e)
                 wgt = q[ID][j] == c[ID][i] ? wgt : 0.f;
                 acc[0][i] += wgt * q[R][j];
                 acc[1][i] += wgt * q[G][j];
@@ -173,9 +173,10 @@ PassDesc JointBilateralPass::describe() {
 }
 
 JointBilateralPass::JointBilateralPass(const ParamValues& params) {
+    // 1 / (2 sigma^2), times log2(e): the kernel evaluates exp(-x) as 2^(-x log2 e).
     auto inv = [&](const char* name) {
         const double sigma = params.getDouble(name);
-        return float(1.0 / (2.0 * sigma * sigma));
+        return float(1.4426950408889634 / (2.0 * sigma * sigma));
     };
     s_.radius = int(params.getInt("radius"));
     s_.invTwoSigmaCoord2 = inv("sigmaCoord");
@@ -190,11 +191,11 @@ void JointBilateralPass::execute(FrameContext& ctx, PassIO& io) {
     GuidePlanes guide(w, h, s_.radius);
     buildGuide(ctx, io, guide);
 
-    // An angle of pi/2 alone contributes (pi/2)^2 / (2 sn^2) to the exponent; from 87 on the
-    // weight is exactly 0 in jbf::expNonPositive, so obtuse angles need no exact acos
-    // (true for the default sigmaNormal 0.1: 123 > 87).
+    // An angle of pi/2 alone contributes (pi/2)^2 / (2 sn^2) log2(e) to the (base-2) exponent;
+    // from 126 on the weight is exactly 0 in jbf::exp2NonPositive, so obtuse angles need no
+    // exact acos (true for the default sigmaNormal 0.1: 178 > 126).
     const float halfPi2 = 2.4674011f;
-    const bool exactObtuse = halfPi2 * s_.invTwoSigmaNormal2 < 87.5f;
+    const bool exactObtuse = halfPi2 * s_.invTwoSigmaNormal2 < 126.5f;
     const Settings s = s_;
     ctx.parallelRows(h, [&](int y0, int y1) {
         for (int y = y0; y < y1; ++y) {

@@ -18,6 +18,7 @@ public:
     explicit JointBilateralPass(const ParamValues& params);
     void execute(FrameContext& ctx, PassIO& io) override;
 
+    /// Kernel constants: each inverse is 1 / (2 sigma^2) times log2(e) (base-2 exponent).
     struct Settings {
         int radius = 16;
         float invTwoSigmaCoord2 = 0, invTwoSigmaColor2 = 0, invTwoSigmaNormal2 = 0,
