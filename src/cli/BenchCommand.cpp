@@ -56,28 +56,6 @@ bool isSourceType(const PassType& t) {
     return true;
 }
 
-/// Replaces the graph's sinks by marked outputs (what fed each sink's first input), so the
-/// bench times the filter, not file writing, and reads the result from memory.
-std::string detachSinks(GraphDesc& g, const Registry& reg) {
-    std::set<std::string> sinks;
-    for (const auto& p : g.passes)
-        if (const PassType* t = reg.find(p.type); t && t->desc.sink) sinks.insert(p.name);
-    std::string marked;
-    std::vector<EdgeDesc> kept;
-    for (const auto& e : g.edges) {
-        if (!sinks.count(e.toPass)) {
-            kept.push_back(e);
-            continue;
-        }
-        if (marked.empty()) marked = e.fromPass + "." + e.fromPort;
-    }
-    if (marked.empty()) throw Error("graph '" + g.name + "' has no writer whose input could be measured");
-    g.edges = kept;
-    std::erase_if(g.passes, [&](const PassNode& p) { return sinks.count(p.name) > 0; });
-    g.outputs.push_back(marked);
-    return marked;
-}
-
 std::vector<Setting> makeSettings(const BenchOptions& o) {
     std::vector<Setting> settings;
     std::vector<std::string> graphs = o.graphs;
@@ -169,7 +147,7 @@ int runBench(const BenchOptions& o) {
             g.outputs = {source + ".color"};
             marked = g.outputs.front();
         } else {
-            marked = detachSinks(g, reg);
+            marked = markSinkInput(g, reg, true);
         }
         CompileOptions copt;
         copt.firstFrame = frames.front();

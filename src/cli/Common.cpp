@@ -144,6 +144,25 @@ void printGraphError(const GraphError& e, const GraphDesc* graph) {
     }
 }
 
+std::string markSinkInput(GraphDesc& g, const Registry& reg, bool detach) {
+    std::vector<std::string> sinks;
+    for (const auto& p : g.passes)
+        if (const PassType* t = reg.find(p.type); t && t->desc.sink) sinks.push_back(p.name);
+    auto isSinkName = [&](const std::string& n) {
+        return std::find(sinks.begin(), sinks.end(), n) != sinks.end();
+    };
+    std::string marked;
+    for (const auto& e : g.edges)
+        if (isSinkName(e.toPass) && marked.empty()) marked = e.fromPass + "." + e.fromPort;
+    if (marked.empty()) throw Error("graph '" + g.name + "' has no writer whose input could be measured");
+    if (detach) {
+        std::erase_if(g.edges, [&](const EdgeDesc& e) { return isSinkName(e.toPass); });
+        std::erase_if(g.passes, [&](const PassNode& p) { return isSinkName(p.name); });
+    }
+    if (std::find(g.outputs.begin(), g.outputs.end(), marked) == g.outputs.end()) g.outputs.push_back(marked);
+    return marked;
+}
+
 std::vector<int64_t> parseFrameList(const std::string& text) {
     try {
         return parseFrameRange(text);

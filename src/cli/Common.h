@@ -41,6 +41,11 @@ struct GraphOptions {
 /// built-in scene (generated on first use); a sink without a path writes under outDir.
 GraphDesc prepareGraph(const GraphOptions& options, const Registry& registry);
 
+/// The "pass.port" that feeds the graph's first writer (sink), added to the graph's marked
+/// outputs so it can be read in memory. With `detach`, the writers are removed (benchmarks time
+/// the filter, not file writing). Throws Error when the graph has no writer.
+std::string markSinkInput(GraphDesc& graph, const Registry& registry, bool detach);
+
 /// Prints every diagnostic of a GraphError on stderr, one per line. With the graph, a JSON path
 /// into a pass also names it as the user writes it in --set: "passes[1].params.alpha (taa.alpha)".
 void printGraphError(const GraphError& e, const GraphDesc* graph = nullptr);

@@ -13,6 +13,9 @@
 #include "Common.h"
 #include "Progress.h"
 #include "kestrel/Executor.h"
+#include "kestrel/FramePattern.h"
+#include <eval/ExrRgb.h>
+#include <eval/Metrics.h>
 #include "kestrel/Log.h"
 
 namespace kestrel::cli {
@@ -30,6 +33,7 @@ struct RunOptions {
     int warmup = 0;
     bool skipBadFrames = false;
     std::string size;  // WxH for graphs without a source
+    std::string reference, refLayer;  // print each frame's error against these frames
 };
 
 void logReport(const CompiledGraph& g) {
@@ -47,6 +51,7 @@ int runGraph(const RunOptions& o) {
     std::unique_ptr<CompiledGraph> compiled;
     std::vector<int64_t> frames;
     Extent size{};
+    std::string measured;  // "pass.port" compared with --reference
     GraphDesc g;
     try {
         plugins = loadPlugins();
@@ -57,6 +62,7 @@ int runGraph(const RunOptions& o) {
                 size.width <= 0 || size.height <= 0)
                 throw Error("--size " + o.size + ": expected WIDTHxHEIGHT");
         }
+        if (!o.reference.empty()) measured = markSinkInput(g, plugins->registry, false);
         CompileOptions copt;
         copt.firstFrame = frames.empty() ? 0 : frames.front();
         compiled = compileGraph(g, plugins->registry, copt);
@@ -136,6 +142,9 @@ int runGraph(const RunOptions& o) {
     std::map<std::string, std::vector<double>> passTimes;
     std::vector<double> frameTimes;
     int failures = 0, written = 0;
+    eval::FrameImages refPrev, refCur;
+    bool haveRef = false;
+    std::vector<eval::FrameMetrics> errors;
     int rc = 0;
     for (size_t i = 0; i < schedule.size(); ++i) {
         auto [frame, write] = schedule[i];
@@ -161,6 +170,28 @@ int runGraph(const RunOptions& o) {
         }
         if (write) ++written;
         frameTimes.push_back(exec.lastFrameMs());
+        if (!measured.empty()) {
+            try {
+                std::string refPath = expandFramePattern(o.reference, frame);
+                Image ref = eval::readExrRgb(refPath, o.refLayer);
+                ImageView out = exec.output(measured);
+                if (ref.extent() != out.extent)
+                    throw FrameError("reference " + refPath + " has another size than the output");
+                auto m = eval::compareImages(out, ref.view(), eval::ToneMap::Reinhard,
+                                             haveRef ? &refPrev : nullptr, &refCur);
+                std::swap(refPrev, refCur);
+                haveRef = true;
+                errors.push_back(m);
+                progress.clear();
+                spdlog::info("frame {}: {:.2f} ms  relMSE {:.5f}  PSNR {:.2f} dB  SSIM {:.4f}", frame,
+                             exec.lastFrameMs(), m.relMse, m.psnr, m.ssim);
+            } catch (const Error& e) {
+                progress.clear();
+                std::cerr << "error: --reference: " << e.what() << "\n";
+                rc = 1;
+                break;
+            }
+        }
         for (const auto& t : exec.lastTimes()) passTimes[t.pass].push_back(t.ms);
         if (gVerbose) {
             std::string detail;
@@ -191,6 +222,13 @@ int runGraph(const RunOptions& o) {
                      failures ? fmt::format(", {} skipped", failures) : std::string(),
                      median(frameTimes), exec.memory().peakBytes / 1e6,
                      double(exec.memory().peakBytes) / double(std::max<size_t>(1, exec.extent().pixels())));
+        if (!errors.empty()) {
+            double rel = 0, psnr = 0, ssim = 0;
+            for (const auto& m : errors) rel += m.relMse, psnr += m.psnr, ssim += m.ssim;
+            double n = double(errors.size());
+            spdlog::info("mean error of {} ({} frames): relMSE {:.5f}  PSNR {:.2f} dB  SSIM {:.4f}",
+                         measured, errors.size(), rel / n, psnr / n, ssim / n);
+        }
         for (const auto& n : compiled->executionOrder())
             if (passTimes.count(n)) spdlog::debug("  {:<24} {:8.3f} ms median", n, median(passTimes[n]));
     }
@@ -221,6 +259,9 @@ void addRunCommand(CLI::App& app, Action& action) {
     cmd->add_option("--warmup", o->warmup, "Run N frames before the range without writing them")
         ->check(CLI::Range(0, 100000));
     cmd->add_flag("--skip-bad-frames", o->skipBadFrames, "Skip missing or corrupt frames (history is reset)");
+    cmd->add_option("--reference", o->reference,
+                    "Reference frames: print each frame's error (relMSE, PSNR, SSIM) next to its time");
+    cmd->add_option("--ref-layer", o->refLayer, "RGB layer of the reference (default: automatic)");
     cmd->add_option("--size", o->size, "Frame size WxH for graphs without an input pass");
     cmd->add_option("--out-dir", o->graph.outDir, "Where default outputs and the built-in scene go");
     cmd->add_flag("-v,--verbose", gVerbose, "Per-frame and per-pass timings, details of errors");
