@@ -86,6 +86,7 @@ private:
                 n.inEdge.assign(ports, -1);
                 n.outAbsent.assign(ports, false);
                 n.absentReason.assign(ports, {});
+                n.rootCause.assign(ports, {});
                 n.forward.assign(ports, -1);
                 n.portResource.assign(ports, -1);
                 n.portHistory.assign(ports, false);
@@ -260,7 +261,7 @@ private:
     /// The output that really produces what `input` of node `n` reads: follows forwards.
     /// nullopt when unconnected or absent (reason in `why`).
     std::optional<PortRef> sourceOf(int n, int input, std::string* why = nullptr,
-                                    std::vector<int>* via = nullptr) {
+                                    std::vector<int>* via = nullptr, std::string* root = nullptr) {
         int e = node(n).inEdge[size_t(input)];
         for (int hops = 0; hops < 1000; ++hops) {
             if (e < 0) return std::nullopt;
@@ -268,8 +269,13 @@ private:
             r.port = portIndex(descOf(r.node), edge(e).fromPort, PortKind::Output);
             NodeState& s = node(r.node);
             if (s.outAbsent[size_t(r.port)]) {
-                // Name the producer so a chain of left-out passes reads back to its cause.
-                if (why) *why = portName(r) + ": " + s.absentReason[size_t(r.port)];
+                // Name the producer and the origin of the absence, not the whole chain between.
+                const std::string& origin = s.rootCause[size_t(r.port)].empty()
+                                                ? portName(r) + " is absent (" + s.absentReason[size_t(r.port)] + ")"
+                                                : s.rootCause[size_t(r.port)];
+                if (why)
+                    *why = s.absent ? "pass '" + s.name + "' is left out because " + origin : origin;
+                if (root) *root = origin;
                 return std::nullopt;
             }
             int f = s.forward[size_t(r.port)];
@@ -329,21 +335,20 @@ private:
             for (size_t p = 0; p < ports.size(); ++p) {
                 if (ports[p].kind != PortKind::Input || ports[p].optional || n.inEdge[p] < 0)
                     continue;
-                std::string why;
-                if (!sourceOf(v, int(p), &why)) {
+                std::string why, root;
+                if (!sourceOf(v, int(p), &why, nullptr, &root)) {
                     n.absent = true;
-                    n.absentWhy = "input '" + ports[p].name + "' has no data (" + why + ")";
+                    n.absentWhy = "input '" + ports[p].name + "' has no data: " + why;
+                    for (size_t q = 0; q < ports.size(); ++q)
+                        if (ports[q].kind == PortKind::Output) {
+                            n.outAbsent[q] = true;
+                            n.absentReason[q] = "pass '" + n.name + "' is left out";
+                            n.rootCause[q] = root;
+                        }
                     break;
                 }
             }
-            if (n.absent) {
-                for (size_t p = 0; p < ports.size(); ++p)
-                    if (ports[p].kind == PortKind::Output) {
-                        n.outAbsent[p] = true;
-                        n.absentReason[p] = "pass '" + n.name + "' is left out: " + n.absentWhy;
-                    }
-                continue;
-            }
+            if (n.absent) continue;
             Resolver rc(*this, v);
             try {
                 n.pass->resolve(rc);
@@ -389,7 +394,11 @@ private:
         for (size_t m = 0; m < g_->marked.size(); ++m) {
             auto [v, p] = g_->marked[m];
             NodeState& n = node(v);
-            if (n.outAbsent[size_t(p)]) rootFail("output " + g_->markedNames[m], n.absentReason[size_t(p)]);
+            if (n.outAbsent[size_t(p)])
+                rootFail("output " + g_->markedNames[m],
+                         n.absentReason[size_t(p)] + (n.rootCause[size_t(p)].empty()
+                                                          ? std::string()
+                                                          : " because " + n.rootCause[size_t(p)]));
             int f = n.forward[size_t(p)];
             if (f < 0) {
                 live(v);

@@ -17,6 +17,7 @@ struct NodeState {
     std::vector<int> inEdge;          ///< per port: edge index feeding it (inputs), else -1
     std::vector<bool> outAbsent;      ///< per port (outputs): will not be produced
     std::vector<std::string> absentReason;
+    std::vector<std::string> rootCause;   ///< per absent output: "pass.port is absent (why)" at the origin
     std::vector<int> forward;         ///< per port (outputs): input port it forwards, else -1
     std::vector<int> portResource;    ///< per port: resource read (inputs) or written (outputs)
     std::vector<bool> portHistory;    ///< per input port: reads the previous frame's buffer
