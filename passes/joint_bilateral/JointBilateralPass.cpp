@@ -16,8 +16,10 @@ constexpr float kBackgroundIdF = float(kBackgroundId);
 constexpr int kChunk = 64;      // centre pixels processed together (tiles stay in L1)
 constexpr int kMaxRadius = 64;  // the radius parameter's upper bound
 
+// NaN and +-Inf carry no information: 0, as px::sanitize does (clamping Inf to +-limit made one
+// Inf sample a 1e18 output that the temporal history then kept; stability suite, NanAndInfRadiance).
 float sanitise(float v, float limit) {
-    return v == v ? std::clamp(v, -limit, limit) : 0.f;
+    return std::isfinite(v) ? std::clamp(v, -limit, limit) : 0.f;
 }
 
 /// Per-pixel terms of the guide, planar, with `pad` background columns on the left and
@@ -198,9 +200,11 @@ void JointBilateralPass::execute(FrameContext& ctx, PassIO& io) {
     const bool exactObtuse = halfPi2 * s_.invTwoSigmaNormal2 < 126.5f;
     const Settings s = s_;
     ctx.parallelRows(h, [&](int y0, int y1) {
-        for (int y = y0; y < y1; ++y) {
-            const float* id = guide.row(GuidePlanes::ID, y);
-            for (int x0 = 0; x0 < w; x0 += kChunk) {
+        // Chunk columns outside, rows inside: consecutive rows of one column reuse the same
+        // (2r+1)-row window of guide data from L2 (whole guide rows would come from L3).
+        for (int x0 = 0; x0 < w; x0 += kChunk) {
+            for (int y = y0; y < y1; ++y) {
+                const float* id = guide.row(GuidePlanes::ID, y);
                 const int n = std::min(kChunk, w - x0);
                 float* oR = out.row(0, y) + x0;
                 float* oG = out.row(1, y) + x0;
