@@ -1,0 +1,235 @@
+// End-to-end quality of the shipped graphs on generated scenes with a reference (issue 4):
+// SVGF against the 1-spp input, against single-frame filtering, temporal stability, convergence
+// on a static camera; graphs adapting to scenes that lack AOVs; the GAMES202 graphs on a
+// GAMES202-layout sequence. The numbers in the comments were measured on the scenes below.
+#include <eval/ExrRgb.h>
+#include <eval/Metrics.h>
+#include <gtest/gtest.h>
+#include <kestrel/Compiler.h>
+#include <kestrel/Executor.h>
+#include <kestrel/FramePattern.h>
+#include <kestrel/Plugin.h>
+#include <scenegen/SceneGen.h>
+
+#include <algorithm>
+#include <cmath>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+namespace fs = std::filesystem;
+using namespace kestrel;
+
+namespace {
+
+struct Plugins {
+    PluginLoader loader;
+    Registry registry;
+    Plugins() { loader.loadDirectories({KESTREL_PLUGIN_BUILD_DIR}, registry); }
+};
+
+Plugins& plugins() {
+    static Plugins p;
+    return p;
+}
+
+/// A generated scene, made once per option set in a per-test-binary temp folder.
+fs::path makeScene(const std::string& name, scenegen::SceneOptions opt) {
+    fs::path dir = fs::temp_directory_path() / ("kestrel-quality-" + std::to_string(::getpid())) / name;
+    if (!fs::exists(dir / "done")) {  // once per test binary run
+        fs::create_directories(dir);
+        scenegen::writeSequence(opt, dir);
+        std::ofstream(dir / "done") << "1";
+    }
+    return dir;
+}
+
+scenegen::SceneOptions baseScene() {
+    scenegen::SceneOptions o;
+    o.width = 96;
+    o.height = 64;
+    o.frames = 12;
+    o.referenceSpp = 256;
+    return o;
+}
+
+struct RunResult {
+    std::vector<eval::FrameMetrics> metrics;  ///< per frame
+    std::vector<std::string> executed;
+    CompileReport report;
+    double mean(size_t from = 0) const {
+        double s = 0;
+        for (size_t i = from; i < metrics.size(); ++i) s += metrics[i].relMse;
+        return s / double(metrics.size() - from);
+    }
+    double meanTemporal(size_t from = 1) const {
+        double s = 0;
+        size_t n = 0;
+        for (size_t i = std::max<size_t>(from, 1); i < metrics.size(); ++i) s += metrics[i].temporal.value_or(0), ++n;
+        return s / double(n);
+    }
+};
+
+/// Runs a shipped graph over `input` (its writer replaced by a marked output) and measures each
+/// frame against `ref`. `perFrame` resets history before every frame: the same filter without
+/// temporal reuse.
+RunResult runGraph(const std::string& graphName, const std::string& input, const std::string& ref,
+                   const std::vector<int64_t>& frames, bool perFrame = false,
+                   const std::vector<std::string>& sets = {}) {
+    GraphDesc g = loadGraphFile(fs::path(KESTREL_SOURCE_DIR) / "graphs" / graphName);
+    applyOverride(g, "input.path=" + nlohmann::json(input).dump());
+    for (const auto& s : sets) applyOverride(g, s);
+    std::string marked;
+    for (const auto& e : g.edges)
+        if (e.toPass == "output") marked = e.fromPass + "." + e.fromPort;
+    std::erase_if(g.edges, [](const EdgeDesc& e) { return e.toPass == "output"; });
+    std::erase_if(g.passes, [](const PassNode& p) { return p.name == "output"; });
+    g.outputs.push_back(marked);
+    CompileOptions copt;
+    copt.firstFrame = frames.front();
+    auto compiled = compileGraph(g, plugins().registry, copt);
+    RunResult r;
+    r.executed = compiled->executionOrder();
+    r.report = compiled->report();
+    Parallel parallel(2);
+    Executor exec(*compiled, parallel);
+    exec.beginRun(frames.front(), frames.back());
+    eval::FrameImages prev, cur;
+    for (size_t i = 0; i < frames.size(); ++i) {
+        if (perFrame) exec.resetHistory();
+        exec.runFrame(frames[i], false);
+        Image reference = eval::readExrRgb(expandFramePattern(ref, frames[i]));
+        r.metrics.push_back(eval::compareImages(exec.output(marked), reference.view(),
+                                                eval::ToneMap::Reinhard, i ? &prev : nullptr, &cur));
+        EXPECT_EQ(r.metrics.back().nonFiniteOutput, 0u) << graphName << " frame " << frames[i];
+        std::swap(prev, cur);
+    }
+    return r;
+}
+
+/// relMSE of the 1-spp input itself.
+double inputError(const fs::path& scene, const std::vector<int64_t>& frames, size_t from = 0) {
+    double s = 0;
+    for (size_t i = from; i < frames.size(); ++i) {
+        Image noisy = eval::readExrRgb(expandFramePattern((scene / "noisy/frame_####.exr").string(), frames[i]));
+        Image ref = eval::readExrRgb(expandFramePattern((scene / "ref/frame_####.exr").string(), frames[i]));
+        s += eval::relMse(eval::sanitizedRgb(noisy.view()).view(), ref.view());
+    }
+    return s / double(frames.size() - from);
+}
+
+std::vector<int64_t> range(int64_t a, int64_t b) {
+    std::vector<int64_t> f;
+    for (int64_t i = a; i <= b; ++i) f.push_back(i);
+    return f;
+}
+
+bool contains(const std::vector<std::string>& v, const std::string& s) {
+    return std::find(v.begin(), v.end(), s) != v.end();
+}
+
+}  // namespace
+
+// The SVGF algorithm (svgf-notaa.json: TAA only blurs un-jittered frames, see that graph's comment).
+// Measured (96x64, 12 frames, 256-spp reference, frames 4-12): input relMSE 0.647, the same
+// filter without temporal reuse (history reset every frame) 0.077, SVGF 0.060.
+TEST(SvgfQuality, FarBelowInputAndBelowSingleFrameFiltering) {
+    fs::path scene = makeScene("moving", baseScene());
+    auto frames = range(1, 12);
+    std::string in = (scene / "noisy/frame_####.exr").string(), ref = (scene / "ref/frame_####.exr").string();
+    RunResult svgf = runGraph("svgf-notaa.json", in, ref, frames);
+    RunResult single = runGraph("svgf-notaa.json", in, ref, frames, /*perFrame=*/true);
+    double input = inputError(scene, frames, 3);
+    std::printf("relMSE frames 4-12: input %.4f, per-frame %.4f, svgf %.4f\n", input, single.mean(3), svgf.mean(3));
+    EXPECT_LT(svgf.mean(3), 0.25 * input);
+    EXPECT_LT(svgf.mean(3), 0.9 * single.mean(3));  // measured 0.060 vs 0.077
+}
+
+// Measured: see the printed figures; temporal reuse must make the output steadier.
+TEST(SvgfQuality, TemporallyMoreStableThanPerFrameFiltering) {
+    fs::path scene = makeScene("moving", baseScene());
+    auto frames = range(1, 12);
+    std::string in = (scene / "noisy/frame_####.exr").string(), ref = (scene / "ref/frame_####.exr").string();
+    RunResult svgf = runGraph("svgf-notaa.json", in, ref, frames);
+    RunResult single = runGraph("svgf-notaa.json", in, ref, frames, true);
+    std::printf("temporal instability: per-frame %.5f, svgf %.5f\n", single.meanTemporal(3), svgf.meanTemporal(3));
+    EXPECT_LT(svgf.meanTemporal(3), 0.8 * single.meanTemporal(3));  // measured 0.0124 vs 0.0198
+}
+
+TEST(SvgfQuality, StaticCameraErrorKeepsFallingAsFramesAccumulate) {
+    auto opt = baseScene();
+    opt.staticCamera = true;
+    opt.movingObject = false;
+    opt.frames = 16;
+    fs::path scene = makeScene("static", opt);
+    auto frames = range(1, 16);
+    RunResult r = runGraph("svgf.json", (scene / "noisy/frame_####.exr").string(),
+                           (scene / "ref/frame_####.exr").string(), frames);
+    double e1 = r.metrics[0].relMse, e4 = r.metrics[3].relMse, e16 = r.metrics[15].relMse;
+    std::printf("static relMSE: frame 1 %.4f, frame 4 %.4f, frame 16 %.4f\n", e1, e4, e16);
+    EXPECT_LT(e4, e1);
+    EXPECT_LT(e16, e4);
+}
+
+// svgf.json runs unchanged on a scene without emission, albedo and motion vectors: demodulation
+// and modulation are left out, reprojection uses positions and matrices, and the loader reads
+// none of the missing channels.
+TEST(SvgfAdapts, SceneWithoutAlbedoEmissionOrMotion) {
+    auto opt = baseScene();
+    opt.frames = 6;
+    opt.omit = {"albedo", "emission", "motion", "direct", "indirect"};
+    fs::path scene = makeScene("bare", opt);
+    auto frames = range(1, 6);
+    RunResult r = runGraph("svgf.json", (scene / "noisy/frame_####.exr").string(),
+                           (scene / "ref/frame_####.exr").string(), frames);
+    auto elided = [&](const std::string& pass) {
+        for (const auto& e : r.report.elided)
+            if (e.pass == pass) return true;
+        return false;
+    };
+    EXPECT_TRUE(elided("single_demodulate"));
+    EXPECT_TRUE(elided("single_modulate"));
+    EXPECT_FALSE(contains(r.executed, "single_demodulate"));
+    EXPECT_TRUE(contains(r.executed, "single_reprojection"));
+    EXPECT_LT(r.mean(2), 0.5 * inputError(scene, frames, 2));
+}
+
+// The GAMES202 graphs run on a GAMES202-layout sequence (one EXR per buffer per frame plus the
+// matrix file) without conversion, and reduce the error of the input.
+TEST(Games202Graphs, RunOnTheHomeworkLayoutAndReduceError) {
+    auto opt = baseScene();
+    opt.frames = 6;
+    opt.firstFrame = 0;
+    opt.layout = scenegen::SceneOptions::Layout::Games202;
+    fs::path scene = makeScene("games202", opt);
+    auto frames = range(0, 5);
+    double input = 0;
+    for (auto f : frames) {
+        Image noisy = eval::readExrRgb(scene / ("beauty_" + std::to_string(f) + ".exr"));
+        Image ref = eval::readExrRgb(scene / "reference" / ("beauty_" + std::to_string(f) + ".exr"));
+        input += eval::relMse(noisy.view(), ref.view()) / double(frames.size());
+    }
+    for (const char* graph : {"games202-jbf.json", "games202-atrous.json"}) {
+        RunResult r = runGraph(graph, (scene / "beauty_%d.exr").string(),
+                               (scene / "reference/beauty_%d.exr").string(), frames);
+        std::printf("%s: input relMSE %.4f, output %.4f\n", graph, input, r.mean());
+        EXPECT_LT(r.mean(), 0.5 * input) << graph;
+    }
+}
+
+// Design.md section 7 on the real Blender sample (frames 5-12, 512-spp reference): the split
+// filtering reached relMSE ~0.009 without TAA; svgf.json (split + TAA) measured 0.0187.
+TEST(BlenderSample, SvgfRunsOnTheRealRenderAndMatchesTheDesignFigures) {
+    fs::path dir = fs::path(KESTREL_SHARED_DIR) / "data" / "blender-sample-room";
+    if (!fs::exists(dir / "noisy" / "frame_0001.exr"))
+        GTEST_SKIP() << "../shared/data/blender-sample-room not present (a user's clone)";
+    auto frames = range(1, 12);
+    RunResult r = runGraph("svgf.json", (dir / "noisy/frame_####.exr").string(),
+                           (dir / "ref/frame_####.exr").string(), frames);
+    EXPECT_TRUE(contains(r.executed, "diffuse_atrous0")) << "the diffuse/specular split was not used";
+    double svgf = r.mean(4);
+    std::printf("blender sample svgf.json relMSE frames 5-12: %.4f\n", svgf);
+    EXPECT_LT(svgf, 0.03);
+}
