@@ -56,6 +56,10 @@ GraphDesc parseGraph(const std::string& text, const std::filesystem::path& sourc
         std::string detail = pos == std::string::npos ? msg : msg.substr(pos);
         throw GraphError(std::vector<Diagnostic>{{"", where + ":" + std::to_string(line) + ":" + std::to_string(col) +
                                    ": JSON " + detail}});
+    } catch (const json::exception& e) {
+        // Other parser errors (e.g. out_of_range.406 "number overflow parsing '1e400'") must be
+        // a GraphError too, not escape to the caller (found by fuzz/graph_fuzzer seed errors.json).
+        throw GraphError(std::vector<Diagnostic>{{"", where + ": JSON " + e.what()}});
     }
     GraphDesc g;
     g.sourcePath = source;
