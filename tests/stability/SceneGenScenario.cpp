@@ -1,0 +1,54 @@
+#include <scenegen/SceneGen.h>
+
+#include "StabilityRig.h"
+
+namespace stability {
+
+using namespace kestrel;
+
+namespace {
+Mat4 toMat4(const scenegen::Mat4& a) {
+    Mat4 m;
+    for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c) m.m[size_t(r)][size_t(c)] = a[size_t(r * 4 + c)];
+    return m;
+}
+template <size_t N>
+void copyPlanes(const std::array<std::vector<float>, N>& src, Image& dst) {
+    for (size_t c = 0; c < N; ++c) std::copy(src[c].begin(), src[c].end(), dst.channel(int(c)));
+}
+}  // namespace
+
+Scenario sceneGenScenario(const scenegen::SceneOptions& options) {
+    Scenario s;
+    s.extent = {options.width, options.height};
+    s.provides = {"color", "albedo", "emission", "normal",
+                  "depth", "motion", "objectId", "position"};
+    s.fill = [options](int64_t frame, Frame& f) {
+        const scenegen::FrameAovs a = scenegen::renderFrame(options, int(frame));
+        copyPlanes(a.color, f["color"]);
+        copyPlanes(a.albedo, f["albedo"]);
+        copyPlanes(a.emission, f["emission"]);
+        copyPlanes(a.normal, f["normal"]);
+        copyPlanes(a.position, f["position"]);
+        copyPlanes(a.motion, f["motion"]);
+        std::copy(a.depth.begin(), a.depth.end(), f["depth"].channel(0));
+        std::copy(a.objectId.begin(), a.objectId.end(), f["objectId"].view().ints());
+        f.scene.hasCamera = true;
+        f.scene.worldToCamera = toMat4(a.worldToCamera);
+        f.scene.worldToPixel = toMat4(a.worldToPixel);
+        for (const auto& [id, m] : a.objectToWorld) f.scene.objectToWorld[id] = toMat4(m);
+    };
+    return s;
+}
+
+double relMse(const std::vector<float>& out, const std::vector<float>& ref) {
+    double sum = 0;
+    for (size_t i = 0; i < out.size(); ++i) {
+        const double d = double(out[i]) - double(ref[i]);
+        sum += d * d / (double(ref[i]) * double(ref[i]) + 1e-2);
+    }
+    return out.empty() ? 0.0 : sum / double(out.size());
+}
+
+}  // namespace stability
