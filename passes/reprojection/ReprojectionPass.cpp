@@ -3,6 +3,7 @@
 #include <kestrel/PixelMath.h>
 
 #include <map>
+#include <memory>
 #include <vector>
 
 using namespace kestrel;
@@ -150,6 +151,41 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
     const float dThr = depthThreshold_, nThr = normalThreshold_;
     const bool cr = catmullRom_;
 
+    // Last frame's taps, sanitised once per frame and interleaved per pixel: a consistency
+    // test then reads one 20-byte record instead of five planes, and a tap one 24-byte record
+    // instead of six (the values are the same sanitised floats the per-tap code computed).
+    struct PrevGeom {
+        float z, n[3];
+        int32_t id;
+    };
+    struct PrevData {
+        float c[3], m[2], h;
+    };
+    const size_t npx = size_t(w) * size_t(h);
+    std::unique_ptr<PrevGeom[]> geomBuf(new PrevGeom[npx]);
+    std::unique_ptr<PrevData[]> dataBuf(new PrevData[npx]);
+    PrevGeom* const geom = geomBuf.get();
+    PrevData* const data = dataBuf.get();
+    ctx.parallelRows(h, [&](int ya, int yb) {
+        const size_t b = size_t(ya) * size_t(w), e = size_t(yb) * size_t(w);
+        const float *pz = pDepth.channel(0), *pn0 = pNormal.channel(0), *pn1 = pNormal.channel(1),
+                    *pn2 = pNormal.channel(2);
+        for (size_t t = b; t < e; ++t) {
+            geom[t].z = px::sanitizeDepth(pz[t]);
+            geom[t].n[0] = px::sanitizeNormal(pn0[t]);
+            geom[t].n[1] = px::sanitizeNormal(pn1[t]);
+            geom[t].n[2] = px::sanitizeNormal(pn2[t]);
+            geom[t].id = pIds ? pIds[t] : 0;
+        }
+        for (size_t t = b; t < e; ++t) {
+            for (int c = 0; c < 3; ++c)
+                data[t].c[c] = pColor ? px::sanitize(pColor->channel(c)[t]) : 0.f;
+            data[t].m[0] = pMoments ? px::sanitize(pMoments->channel(0)[t]) : 0.f;
+            data[t].m[1] = pMoments ? px::sanitizePositive(pMoments->channel(1)[t], 1e32f) : 0.f;
+            data[t].h = pHist ? px::sanitizePositive(pHist->channel(0)[t], 1e6f) : 1.f;
+        }
+    });
+
     ctx.parallelRows(h, [&](int y0, int y1) {
         for (int y = y0; y < y1; ++y)
             for (int x = 0; x < w; ++x) {
@@ -207,14 +243,13 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
 
                 // SVGF consistency test of a previous-frame tap (Falcor's isReprjValid).
                 auto consistent = [&](int tx, int ty) {
-                    if (tx < 0 || ty < 0 || tx >= w || ty >= h) return false;
-                    const size_t t = size_t(ty) * size_t(w) + size_t(tx);
-                    if (pIds && pIds[t] != ids[i]) return false;
-                    if (std::fabs(zRef - px::sanitizeDepth(pDepth.channel(0)[t])) * invZ > dThr)
-                        return false;
+                    if (unsigned(tx) >= unsigned(w) || unsigned(ty) >= unsigned(h)) return false;
+                    const PrevGeom& g = geom[size_t(ty) * size_t(w) + size_t(tx)];
+                    if (pIds && g.id != ids[i]) return false;
+                    if (std::fabs(zRef - g.z) * invZ > dThr) return false;
                     float dn2 = 0;
                     for (int c = 0; c < 3; ++c) {
-                        const float dn = n[c] - px::sanitizeNormal(pNormal.channel(c)[t]);
+                        const float dn = n[c] - g.n[c];
                         dn2 += dn * dn;
                     }
                     return std::sqrt(dn2) * invN <= nThr;
@@ -222,15 +257,14 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
 
                 float acc[3] = {0, 0, 0}, accM[2] = {0, 0}, accH = 0, sumW = 0;
                 auto addTap = [&](int tx, int ty, float wt) {
-                    const size_t t = size_t(ty) * size_t(w) + size_t(tx);
+                    const PrevData& d = data[size_t(ty) * size_t(w) + size_t(tx)];
                     if (pColor)
-                        for (int c = 0; c < 3; ++c)
-                            acc[c] += wt * px::sanitize(pColor->channel(c)[t]);
+                        for (int c = 0; c < 3; ++c) acc[c] += wt * d.c[c];
                     if (pMoments) {
-                        accM[0] += wt * px::sanitize(pMoments->channel(0)[t]);
-                        accM[1] += wt * px::sanitizePositive(pMoments->channel(1)[t], 1e32f);
+                        accM[0] += wt * d.m[0];
+                        accM[1] += wt * d.m[1];
                     }
-                    accH += wt * (pHist ? px::sanitizePositive(pHist->channel(0)[t], 1e6f) : 1.f);
+                    accH += wt * (pHist ? d.h : 1.f);
                     sumW += wt;
                 };
                 int x0 = 0, y0 = 0;
@@ -284,12 +318,12 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
                         catmullRomWeights(fx, wx);
                         catmullRomWeights(fy, wy);
                         for (int c = 0; c < 3; ++c) {
-                            const float* pc = pColor->channel(c);
                             float s = 0, lo = 3e38f, hi = -3e38f;
                             for (int j = 0; j < 4; ++j)
                                 for (int k = 0; k < 4; ++k) {
-                                    const float v = px::sanitize(
-                                        pc[size_t(y0 - 1 + j) * size_t(w) + size_t(x0 - 1 + k)]);
+                                    const float v =
+                                        data[size_t(y0 - 1 + j) * size_t(w) + size_t(x0 - 1 + k)]
+                                            .c[c];
                                     s += wx[k] * wy[j] * v;
                                     if (j >= 1 && j <= 2 && k >= 1 && k <= 2) {
                                         lo = std::min(lo, v);

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <memory>
 #include <vector>
 
 namespace kestrel::passes {
@@ -72,12 +74,14 @@ void TaaPass::execute(FrameContext& ctx, PassIO& io) {
     const ImageView* len = io.hasInput("historyLength") ? &io.input("historyLength") : nullptr;
 
     // The current frame in YCoCg, sanitised, one plane per channel.
-    std::vector<float> ycc(size_t(w) * size_t(h) * 3);
+    // Scratch, fully written below: no zero-fill (std::vector would memset 3 planes).
+    std::unique_ptr<float[]> yccBuf(new float[size_t(w) * size_t(h) * 3]);
+    float* const ycc = yccBuf.get();
     const size_t plane = size_t(w) * size_t(h);
     ctx.parallelRows(h, [&](int y0, int y1) {
         for (int y = y0; y < y1; ++y) {
             const float *r = cur.row(0, y), *g = cur.row(1, y), *b = cur.row(2, y);
-            float* dy = ycc.data() + size_t(y) * w;
+            float* dy = ycc + size_t(y) * w;
             for (int x = 0; x < w; ++x) {
                 Ycc v = toYcc(sanitise(r[x]), sanitise(g[x]), sanitise(b[x]));
                 dy[x] = v.y;
@@ -88,80 +92,138 @@ void TaaPass::execute(FrameContext& ctx, PassIO& io) {
     });
 
     const float alpha = alpha_, gamma = gamma_;
+    const bool clip = clip_, antiFlicker = antiFlicker_;
+    // One pixel's TAA from its 3x3 neighbourhood sums. Pure per-lane arithmetic, identical
+    // for the border path (generic) and the interior row loop (vectorised by the compiler).
+    auto resolvePixel = [=](const float c[3], const float s1[3], const float s2[3], float n,
+                            float hv[3], float res[3]) {
+        float mu[3], lo[3], hi[3];
+        for (int ch = 0; ch < 3; ++ch) {
+            const float m1 = s1[ch] / n;
+            const float ext = gamma * std::sqrt(std::max(0.f, s2[ch] / n - m1 * m1));
+            mu[ch] = c[ch] + m1;
+            // The box always contains the current colour: a lone bright pixel is
+            // outside its own mean +- sigma, and clipping it would make TAA dim
+            // every small feature (a static scene must converge to the input).
+            lo[ch] = std::min(mu[ch] - ext, c[ch]);
+            hi[ch] = std::max(mu[ch] + ext, c[ch]);
+        }
+        if (clip) {
+            // Move H towards mu until it is inside the box (Pedersen 2016);
+            // mu lies inside, so t stays in [0, 1]. Selects instead of branches (vectorises);
+            // an unselected quotient may be Inf/NaN and is discarded.
+            float t = 1.f;
+            for (int ch = 0; ch < 3; ++ch) {
+                const float off = hv[ch] - mu[ch];
+                const float tHi = std::min(t, (hi[ch] - mu[ch]) / off);
+                t = hv[ch] > hi[ch] ? tHi : t;
+                const float tLo = std::min(t, (lo[ch] - mu[ch]) / off);
+                t = hv[ch] < lo[ch] ? tLo : t;
+            }
+            for (int ch = 0; ch < 3; ++ch) hv[ch] = mu[ch] + (hv[ch] - mu[ch]) * t;
+        } else {
+            for (int ch = 0; ch < 3; ++ch) hv[ch] = std::clamp(hv[ch], lo[ch], hi[ch]);
+        }
+        float wc = alpha, wh = 1.f - alpha;
+        if (antiFlicker) {
+            wc /= 1.f + std::max(0.f, c[0]);
+            wh /= 1.f + std::max(0.f, hv[0]);
+        }
+        const float sum = wc + wh;
+        const bool pos = sum > 0.f;
+        const float wcn = wc / sum, whn = wh / sum;
+        wc = pos ? wcn : 1.f;
+        wh = pos ? whn : 0.f;
+        for (int ch = 0; ch < 3; ++ch) res[ch] = wc * c[ch] + wh * hv[ch];
+    };
+
     ctx.parallelRows(h, [&](int y0, int y1) {
         for (int y = y0; y < y1; ++y) {
+            const float *cr = cur.row(0, y), *cg = cur.row(1, y), *cb = cur.row(2, y);
+            float *o0 = out.row(0, y), *o1 = out.row(1, y), *o2 = out.row(2, y);
+            if (!hist) {  // no history: exactly the current colour
+                for (int x = 0; x < w; ++x) {
+                    o0[x] = sanitise(cr[x]);
+                    o1[x] = sanitise(cg[x]);
+                    o2[x] = sanitise(cb[x]);
+                }
+                continue;
+            }
             const int ya = std::max(0, y - 1), yb = std::min(h - 1, y + 1);
             const float* lenRow = len ? len->row(0, y) : nullptr;
-            for (int x = 0; x < w; ++x) {
+            const float *hr = hist->row(0, y), *hg = hist->row(1, y), *hb = hist->row(2, y);
+            // Generic pixel (image borders): clamped 3x3 window.
+            auto generic = [&](int x) {
                 const size_t i = size_t(y) * w + x;
                 const float c[3] = {ycc[i], ycc[plane + i], ycc[2 * plane + i]};
-                float res[3];
-
-                bool valid = hist && (!lenRow || lenRow[x] > 0.f);
-                float hv[3] = {0, 0, 0};
-                if (valid) {
-                    const float hr = hist->row(0, y)[x], hg = hist->row(1, y)[x],
-                                hb = hist->row(2, y)[x];
-                    valid = std::isfinite(hr) && std::isfinite(hg) && std::isfinite(hb);
-                    Ycc v = toYcc(sanitise(hr), sanitise(hg), sanitise(hb));
-                    hv[0] = v.y, hv[1] = v.co, hv[2] = v.cg;
+                const bool valid = (!lenRow || lenRow[x] > 0.f) && std::isfinite(hr[x]) &&
+                                   std::isfinite(hg[x]) && std::isfinite(hb[x]);
+                if (!valid) {  // disoccluded: exactly the current colour
+                    o0[x] = sanitise(cr[x]);
+                    o1[x] = sanitise(cg[x]);
+                    o2[x] = sanitise(cb[x]);
+                    return;
                 }
-                if (!valid) {  // disoccluded or no history: exactly the current colour
-                    for (int ch = 0; ch < 3; ++ch) out.row(ch, y)[x] = sanitise(cur.row(ch, y)[x]);
-                    continue;
-                }
-                {
-                    // 3x3 mean and standard deviation, shifted by the centre for precision.
-                    const int xa = std::max(0, x - 1), xb = std::min(w - 1, x + 1);
-                    const float n = float((yb - ya + 1) * (xb - xa + 1));
-                    float mu[3], lo[3], hi[3];
-                    for (int ch = 0; ch < 3; ++ch) {
-                        const float* p = ycc.data() + size_t(ch) * plane;
-                        float s1 = 0, s2 = 0;
-                        for (int yy = ya; yy <= yb; ++yy)
-                            for (int xx = xa; xx <= xb; ++xx) {
-                                float d = p[size_t(yy) * w + xx] - c[ch];
-                                s1 += d;
-                                s2 += d * d;
-                            }
-                        const float m1 = s1 / n;
-                        const float ext = gamma * std::sqrt(std::max(0.f, s2 / n - m1 * m1));
-                        mu[ch] = c[ch] + m1;
-                        // The box always contains the current colour: a lone bright pixel is
-                        // outside its own mean +- sigma, and clipping it would make TAA dim
-                        // every small feature (a static scene must converge to the input).
-                        lo[ch] = std::min(mu[ch] - ext, c[ch]);
-                        hi[ch] = std::max(mu[ch] + ext, c[ch]);
-                    }
-                    if (clip_) {
-                        // Move H towards mu until it is inside the box (Pedersen 2016);
-                        // mu lies inside, so t stays in [0, 1].
-                        float t = 1.f;
-                        for (int ch = 0; ch < 3; ++ch) {
-                            const float off = hv[ch] - mu[ch];
-                            if (hv[ch] > hi[ch]) t = std::min(t, (hi[ch] - mu[ch]) / off);
-                            if (hv[ch] < lo[ch]) t = std::min(t, (lo[ch] - mu[ch]) / off);
+                Ycc v = toYcc(sanitise(hr[x]), sanitise(hg[x]), sanitise(hb[x]));
+                float hv[3] = {v.y, v.co, v.cg}, res[3];
+                // 3x3 mean and standard deviation, shifted by the centre for precision.
+                const int xa = std::max(0, x - 1), xb = std::min(w - 1, x + 1);
+                const float n = float((yb - ya + 1) * (xb - xa + 1));
+                float s1[3], s2[3];
+                for (int ch = 0; ch < 3; ++ch) {
+                    const float* p = ycc + size_t(ch) * plane;
+                    float a1 = 0, a2 = 0;
+                    for (int yy = ya; yy <= yb; ++yy)
+                        for (int xx = xa; xx <= xb; ++xx) {
+                            float d = p[size_t(yy) * w + xx] - c[ch];
+                            a1 += d;
+                            a2 += d * d;
                         }
-                        for (int ch = 0; ch < 3; ++ch) hv[ch] = mu[ch] + (hv[ch] - mu[ch]) * t;
-                    } else {
-                        for (int ch = 0; ch < 3; ++ch) hv[ch] = std::clamp(hv[ch], lo[ch], hi[ch]);
-                    }
-                    float wc = alpha, wh = 1.f - alpha;
-                    if (antiFlicker_) {
-                        wc /= 1.f + std::max(0.f, c[0]);
-                        wh /= 1.f + std::max(0.f, hv[0]);
-                    }
-                    const float sum = wc + wh;
-                    if (sum > 0.f) {
-                        wc /= sum;
-                        wh /= sum;
-                    } else {
-                        wc = 1.f, wh = 0.f;
-                    }
-                    for (int ch = 0; ch < 3; ++ch) res[ch] = wc * c[ch] + wh * hv[ch];
+                    s1[ch] = a1;
+                    s2[ch] = a2;
                 }
-                fromYcc(res, out.row(0, y)[x], out.row(1, y)[x], out.row(2, y)[x]);
+                resolvePixel(c, s1, s2, n, hv, res);
+                fromYcc(res, o0[x], o1[x], o2[x]);
+            };
+            if (y == 0 || y == h - 1 || w < 3) {
+                for (int x = 0; x < w; ++x) generic(x);
+                continue;
             }
+            generic(0);
+            // Interior: the same arithmetic in the same order with a fixed 3x3 window and no
+            // branches, so the compiler vectorises it across x.
+            const float* rows[3][3];
+            for (int ch = 0; ch < 3; ++ch)
+                for (int r = 0; r < 3; ++r)
+                    rows[ch][r] = ycc + size_t(ch) * plane + size_t(y - 1 + r) * w;
+            for (int x = 1; x < w - 1; ++x) {
+                float c[3], s1[3], s2[3];
+                for (int ch = 0; ch < 3; ++ch) {
+                    c[ch] = rows[ch][1][x];
+                    float a1 = 0, a2 = 0;
+                    for (int r = 0; r < 3; ++r)
+                        for (int k = -1; k <= 1; ++k) {
+                            float d = rows[ch][r][x + k] - c[ch];
+                            a1 += d;
+                            a2 += d * d;
+                        }
+                    s1[ch] = a1;
+                    s2[ch] = a2;
+                }
+                const bool valid = (!lenRow || lenRow[x] > 0.f) &&
+                                   std::fabs(hr[x]) <= std::numeric_limits<float>::max() &&
+                                   std::fabs(hg[x]) <= std::numeric_limits<float>::max() &&
+                                   std::fabs(hb[x]) <= std::numeric_limits<float>::max();
+                Ycc v = toYcc(sanitise(hr[x]), sanitise(hg[x]), sanitise(hb[x]));
+                float hv[3] = {v.y, v.co, v.cg}, res[3];
+                resolvePixel(c, s1, s2, 9.f, hv, res);
+                float r, g, b;
+                fromYcc(res, r, g, b);
+                o0[x] = valid ? r : sanitise(cr[x]);
+                o1[x] = valid ? g : sanitise(cg[x]);
+                o2[x] = valid ? b : sanitise(cb[x]);
+            }
+            generic(w - 1);
         }
     });
 }
