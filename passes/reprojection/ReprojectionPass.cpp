@@ -187,7 +187,37 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
     });
 
     ctx.parallelRows(h, [&](int y0, int y1) {
-        for (int y = y0; y < y1; ++y)
+        // This row's screen-space derivatives, computed in a separate loop (per-chunk scratch).
+        std::vector<float> rowBuf(size_t(w) * 5);
+        float *rInvZ = rowBuf.data(), *rInvN = rInvZ + w, *rn = rInvN + w;
+        for (int y = y0; y < y1; ++y) {
+            for (int x = 0; x < w; ++x) {
+                // Screen-space derivatives at p (one-sided, edge-preserving).
+                const bool l = x > 0, r = x + 1 < w, u = y > 0, d = y + 1 < h;
+                auto zAt = [&](int xx, int yy) { return px::sanitizeDepth(depth.at(0, xx, yy)); };
+                const float zc = zAt(x, y);
+                const float fwZ = std::fabs(px::minAbsDiff(l ? zAt(x - 1, y) : 0, zc,
+                                                           r ? zAt(x + 1, y) : 0, l, r)) +
+                                  std::fabs(px::minAbsDiff(u ? zAt(x, y - 1) : 0, zc,
+                                                           d ? zAt(x, y + 1) : 0, u, d));
+                float* n = rn + 3 * size_t(x);
+                float dnx2 = 0, dny2 = 0;
+                for (int c = 0; c < 3; ++c) {
+                    auto nAt = [&](int xx, int yy) {
+                        return px::sanitizeNormal(normal.at(c, xx, yy));
+                    };
+                    n[c] = nAt(x, y);
+                    const float gx =
+                        px::minAbsDiff(l ? nAt(x - 1, y) : 0, n[c], r ? nAt(x + 1, y) : 0, l, r);
+                    const float gy =
+                        px::minAbsDiff(u ? nAt(x, y - 1) : 0, n[c], d ? nAt(x, y + 1) : 0, u, d);
+                    dnx2 += gx * gx;
+                    dny2 += gy * gy;
+                }
+                const float fwN = std::sqrt(dnx2) + std::sqrt(dny2);
+                rInvZ[x] = 1.f / (fwZ + 1e-2f);
+                rInvN[x] = 1.f / (fwN + 1e-2f);
+            }
             for (int x = 0; x < w; ++x) {
                 const size_t i = size_t(y) * size_t(w) + size_t(x);
                 // Previous-frame position in continuous pixel coordinates (centres at +0.5).
@@ -217,42 +247,26 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
                 // NaN, Inf or absurd positions: disoccluded (also guards the int conversions).
                 ok = ok && std::fabs(ppx) < 1e7f && std::fabs(ppy) < 1e7f;
 
-                // Screen-space derivatives at p (one-sided, edge-preserving).
-                const bool l = x > 0, r = x + 1 < w, u = y > 0, d = y + 1 < h;
-                auto zAt = [&](int xx, int yy) { return px::sanitizeDepth(depth.at(0, xx, yy)); };
-                const float zc = zAt(x, y);
-                const float fwZ = std::fabs(px::minAbsDiff(l ? zAt(x - 1, y) : 0, zc,
-                                                           r ? zAt(x + 1, y) : 0, l, r)) +
-                                  std::fabs(px::minAbsDiff(u ? zAt(x, y - 1) : 0, zc,
-                                                           d ? zAt(x, y + 1) : 0, u, d));
-                float n[3], dnx2 = 0, dny2 = 0;
-                for (int c = 0; c < 3; ++c) {
-                    auto nAt = [&](int xx, int yy) {
-                        return px::sanitizeNormal(normal.at(c, xx, yy));
-                    };
-                    n[c] = nAt(x, y);
-                    const float gx =
-                        px::minAbsDiff(l ? nAt(x - 1, y) : 0, n[c], r ? nAt(x + 1, y) : 0, l, r);
-                    const float gy =
-                        px::minAbsDiff(u ? nAt(x, y - 1) : 0, n[c], d ? nAt(x, y + 1) : 0, u, d);
-                    dnx2 += gx * gx;
-                    dny2 += gy * gy;
-                }
-                const float fwN = std::sqrt(dnx2) + std::sqrt(dny2);
-                const float invZ = 1.f / (fwZ + 1e-2f), invN = 1.f / (fwN + 1e-2f);
+                const float* n = rn + 3 * size_t(x);
+                const float invZ = rInvZ[x], invN = rInvN[x];
 
                 // SVGF consistency test of a previous-frame tap (Falcor's isReprjValid).
-                auto consistent = [&](int tx, int ty) {
+                // Reference values hoisted into locals (registers); without prevObjectId every
+                // record's id is 0, so the id comparison always holds. Evaluated without early
+                // exits: the three tests are pure, so the result is the same.
+                const int32_t refId = pIds ? ids[i] : 0;
+                const float n0 = n[0], n1 = n[1], n2 = n[2], zR = zRef;
+                auto consistent = [&, n0, n1, n2, zR, refId, invZ, invN](int tx, int ty) -> bool {
                     if (unsigned(tx) >= unsigned(w) || unsigned(ty) >= unsigned(h)) return false;
                     const PrevGeom& g = geom[size_t(ty) * size_t(w) + size_t(tx)];
-                    if (pIds && g.id != ids[i]) return false;
-                    if (std::fabs(zRef - g.z) * invZ > dThr) return false;
+                    const float dz = std::fabs(zR - g.z) * invZ;
+                    const float nn[3] = {n0, n1, n2};
                     float dn2 = 0;
                     for (int c = 0; c < 3; ++c) {
-                        const float dn = n[c] - g.n[c];
+                        const float dn = nn[c] - g.n[c];
                         dn2 += dn * dn;
                     }
-                    return std::sqrt(dn2) * invN <= nThr;
+                    return (g.id == refId) & !(dz > dThr) & (std::sqrt(dn2) * invN <= nThr);
                 };
 
                 float acc[3] = {0, 0, 0}, accM[2] = {0, 0}, accH = 0, sumW = 0;
@@ -342,5 +356,6 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
                 }
                 if (outH) outH->channel(0)[i] = accH * inv;
             }
+        }
     });
 }
