@@ -43,7 +43,8 @@ export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
 exclude=""
 # With KESTREL_ASAN_TARGETS, GoogleTest's placeholder "<target>_NOT_BUILT" tests of the other
 # targets are skipped.
-[[ -n ${KESTREL_ASAN_TARGETS:-} ]] && exclude="_NOT_BUILT"
+# The example-plugin test installs the whole tree, which a partial build does not have.
+[[ -n ${KESTREL_ASAN_TARGETS:-} ]] && exclude="_NOT_BUILT|example_plugin"
 # shellcheck disable=SC2086
 ctest --test-dir "$build" --output-on-failure -j"$jobs" --timeout 600 ${exclude:+-E "$exclude"} \
       ${CTEST_ARGS:-}
