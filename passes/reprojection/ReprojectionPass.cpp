@@ -110,6 +110,47 @@ inline void catmullRomWeights(float t, float w[4]) {
     w[3] = 0.5f * t3 - 0.5f * t2;
 }
 
+// Screen-space derivatives of one row (one-sided, edge-preserving: px::minAbsDiff), as
+// 1 / (fwidth + 0.01) of depth and normal, plus the sanitised normal. Neighbour indices are
+// clamped so every load is in range; a clamped neighbour's value is never used (minAbsDiff
+// ignores an absent side), so this equals the per-pixel form and vectorises.
+void rowDerivatives(const float* __restrict z, const float* __restrict zu,
+                    const float* __restrict zd, const float* __restrict a0,
+                    const float* __restrict a0u, const float* __restrict a0d,
+                    const float* __restrict a1, const float* __restrict a1u,
+                    const float* __restrict a1d, const float* __restrict a2,
+                    const float* __restrict a2u, const float* __restrict a2d, bool u, bool d, int w,
+                    float* __restrict invZ, float* __restrict invN, float* __restrict n0,
+                    float* __restrict n1, float* __restrict n2) {
+    for (int x = 0; x < w; ++x) {
+        const bool l = x > 0, r = x + 1 < w;
+        const int xl = l ? x - 1 : x, xr = r ? x + 1 : x;
+        const float zc = px::sanitizeDepth(z[x]);
+        const float fwZ =
+            std::fabs(
+                px::minAbsDiff(px::sanitizeDepth(z[xl]), zc, px::sanitizeDepth(z[xr]), l, r)) +
+            std::fabs(px::minAbsDiff(px::sanitizeDepth(zu[x]), zc, px::sanitizeDepth(zd[x]), u, d));
+        float dnx2 = 0, dny2 = 0;
+        auto channel = [&](const float* __restrict p, const float* __restrict pu,
+                           const float* __restrict pd) {
+            const float c = px::sanitizeNormal(p[x]);
+            const float gx =
+                px::minAbsDiff(px::sanitizeNormal(p[xl]), c, px::sanitizeNormal(p[xr]), l, r);
+            const float gy =
+                px::minAbsDiff(px::sanitizeNormal(pu[x]), c, px::sanitizeNormal(pd[x]), u, d);
+            dnx2 += gx * gx;
+            dny2 += gy * gy;
+            return c;
+        };
+        n0[x] = channel(a0, a0u, a0d);
+        n1[x] = channel(a1, a1u, a1d);
+        n2[x] = channel(a2, a2u, a2d);
+        const float fwN = std::sqrt(dnx2) + std::sqrt(dny2);
+        invZ[x] = 1.f / (fwZ + 1e-2f);
+        invN[x] = 1.f / (fwN + 1e-2f);
+    }
+}
+
 }  // namespace
 
 void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
@@ -189,35 +230,16 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
     ctx.parallelRows(h, [&](int y0, int y1) {
         // This row's screen-space derivatives, computed in a separate loop (per-chunk scratch).
         std::vector<float> rowBuf(size_t(w) * 5);
-        float *rInvZ = rowBuf.data(), *rInvN = rInvZ + w, *rn = rInvN + w;
+        float *rInvZ = rowBuf.data(), *rInvN = rInvZ + w, *rn0 = rInvN + w, *rn1 = rn0 + w,
+              *rn2 = rn1 + w;
         for (int y = y0; y < y1; ++y) {
-            for (int x = 0; x < w; ++x) {
-                // Screen-space derivatives at p (one-sided, edge-preserving).
-                const bool l = x > 0, r = x + 1 < w, u = y > 0, d = y + 1 < h;
-                auto zAt = [&](int xx, int yy) { return px::sanitizeDepth(depth.at(0, xx, yy)); };
-                const float zc = zAt(x, y);
-                const float fwZ = std::fabs(px::minAbsDiff(l ? zAt(x - 1, y) : 0, zc,
-                                                           r ? zAt(x + 1, y) : 0, l, r)) +
-                                  std::fabs(px::minAbsDiff(u ? zAt(x, y - 1) : 0, zc,
-                                                           d ? zAt(x, y + 1) : 0, u, d));
-                float* n = rn + 3 * size_t(x);
-                float dnx2 = 0, dny2 = 0;
-                for (int c = 0; c < 3; ++c) {
-                    auto nAt = [&](int xx, int yy) {
-                        return px::sanitizeNormal(normal.at(c, xx, yy));
-                    };
-                    n[c] = nAt(x, y);
-                    const float gx =
-                        px::minAbsDiff(l ? nAt(x - 1, y) : 0, n[c], r ? nAt(x + 1, y) : 0, l, r);
-                    const float gy =
-                        px::minAbsDiff(u ? nAt(x, y - 1) : 0, n[c], d ? nAt(x, y + 1) : 0, u, d);
-                    dnx2 += gx * gx;
-                    dny2 += gy * gy;
-                }
-                const float fwN = std::sqrt(dnx2) + std::sqrt(dny2);
-                rInvZ[x] = 1.f / (fwZ + 1e-2f);
-                rInvN[x] = 1.f / (fwN + 1e-2f);
-            }
+            const bool u = y > 0, d = y + 1 < h;
+            const int yu = u ? y - 1 : y, yd = d ? y + 1 : y;  // absent neighbours are not used
+            rowDerivatives(depth.row(0, y), depth.row(0, yu), depth.row(0, yd), normal.row(0, y),
+                           normal.row(0, yu), normal.row(0, yd), normal.row(1, y),
+                           normal.row(1, yu), normal.row(1, yd), normal.row(2, y),
+                           normal.row(2, yu), normal.row(2, yd), u, d, w, rInvZ, rInvN, rn0, rn1,
+                           rn2);
             for (int x = 0; x < w; ++x) {
                 const size_t i = size_t(y) * size_t(w) + size_t(x);
                 // Previous-frame position in continuous pixel coordinates (centres at +0.5).
@@ -247,7 +269,7 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
                 // NaN, Inf or absurd positions: disoccluded (also guards the int conversions).
                 ok = ok && std::fabs(ppx) < 1e7f && std::fabs(ppy) < 1e7f;
 
-                const float* n = rn + 3 * size_t(x);
+                const float n[3] = {rn0[x], rn1[x], rn2[x]};
                 const float invZ = rInvZ[x], invN = rInvN[x];
 
                 // SVGF consistency test of a previous-frame tap (Falcor's isReprjValid).
