@@ -7,7 +7,7 @@ using namespace kestrel;
 PassDesc DemodulatePass::describe() {
     PassDesc d("Demodulate",
                "Divides the emission-free radiance by the albedo: illumination = (color - emission)"
-               " / max(albedo, albedoFloor). Identity when neither albedo nor emission is bound.");
+               " / albedo (channels with albedo below albedoFloor are not demodulated). Identity when neither albedo nor emission is bound.");
     d.input("color", Format::Float3, "noisy radiance")
         .optionalInput("albedo", Format::Float3, "surface albedo to divide out")
         .optionalInput("emission", Format::Float3, "emitted radiance to subtract first")
@@ -44,9 +44,7 @@ void DemodulatePass::execute(FrameContext& ctx, PassIO& io) {
                 for (int x = 0; x < w; ++x) {
                     float v = px::sanitize(src[x]);
                     if (e) v -= px::sanitize(e[x]);
-                    // A NaN albedo gives max(NaN, floor) = floor (std::max keeps its first
-                    // argument when the comparison is false): sanitised explicitly anyway.
-                    if (a) v /= std::max(px::sanitizePositive(a[x], 1e30f), floor);
+                    if (a) v /= px::demodulationAlbedo(a[x], floor);
                     dst[x] = px::sanitize(v);
                 }
             }

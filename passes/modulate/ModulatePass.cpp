@@ -6,7 +6,7 @@ using namespace kestrel;
 
 PassDesc ModulatePass::describe() {
     PassDesc d("Modulate",
-               "Re-applies albedo and emission: color = illumination * max(albedo, albedoFloor) +"
+               "Re-applies albedo and emission: color = illumination * albedo (1 below albedoFloor, as Demodulate) +"
                " emission + base. Identity when nothing optional is bound.");
     d.input("illumination", Format::Float3, "filtered demodulated illumination")
         .optionalInput("albedo", Format::Float3, "surface albedo to multiply back")
@@ -45,7 +45,7 @@ void ModulatePass::execute(FrameContext& ctx, PassIO& io) {
                 float* dst = out.row(c, y);
                 for (int x = 0; x < w; ++x) {
                     float v = px::sanitize(src[x]);
-                    if (a) v *= std::max(px::sanitizePositive(a[x], 1e30f), floor);
+                    if (a) v *= px::demodulationAlbedo(a[x], floor);
                     if (e) v += px::sanitize(e[x]);
                     if (b) v += px::sanitize(b[x]);
                     dst[x] = px::sanitize(v);

@@ -36,6 +36,14 @@ inline float sanitizePositive(float v, float limit = kMaxRadiance) {
     return v >= 0.f && v <= kFloatMax ? std::min(v, limit) : 0.f;
 }
 
+/// The albedo that Demodulate divides by and Modulate multiplies by (the same value, so the two
+/// are inverse). Below the floor the channel is not demodulated at all (divisor 1): dividing a
+/// lit pixel by a near-black albedo amplifies it up to 1/floor, and the spatial filters then
+/// spread that into neighbours with ordinary albedo (found by the stability suite). NaN/Inf -> 1.
+inline float demodulationAlbedo(float albedo, float floor) {
+    return albedo >= floor && albedo <= 1e30f ? albedo : 1.f;
+}
+
 /// Linear depth: NaN, Inf, negative or beyond background become the background depth.
 inline float sanitizeDepth(float z) {
     return z >= 0.f && z < kBackgroundDepth ? z : kBackgroundDepth;

@@ -12,7 +12,7 @@ TEST(Modulate, MultipliesAlbedoAddsEmissionAndBase) {
           albedo = constant(2, 1, Format::Float3, 0.5f),
           emission = constant(2, 1, Format::Float3, 0.25f),
           base = constant(2, 1, Format::Float3, 3.f);
-    albedo.at(2, 1, 0) = 0.f;  // floored at 1e-3
+    albedo.at(2, 1, 0) = 0.f;  // below the floor: multiplied by 1, as Demodulate divided by 1
     auto h = PassHarness::make<ModulatePass>({2, 1});
     h.bind("illumination", illum);
     h.bind("albedo", albedo);
@@ -20,7 +20,7 @@ TEST(Modulate, MultipliesAlbedoAddsEmissionAndBase) {
     h.bind("base", base);
     h.run();
     EXPECT_FLOAT_EQ(h.out("color").at(0, 0, 0), 2.f * 0.5f + 0.25f + 3.f);
-    EXPECT_FLOAT_EQ(h.out("color").at(2, 1, 0), 2.f * 1e-3f + 0.25f + 3.f);
+    EXPECT_FLOAT_EQ(h.out("color").at(2, 1, 0), 2.f * 1.f + 0.25f + 3.f);
 }
 
 TEST(Modulate, NonFiniteInputsGiveFiniteOutputs) {
