@@ -233,8 +233,9 @@ TEST(ExtremeInputs, SinglePixelFireflies1e6To1e30) {
                         }
                 const float bound = 2.f * kPlainHi;
                 EXPECT_LE(maxOther, bound) << "frame " << frame << ": the firefly spread";
-                if (svgf || frame > 5)
+                if (svgf || frame > 5) {
                     EXPECT_LE(maxAll, bound) << "frame " << frame << ": firefly not clamped";
+                }
             };
             perThreads.push_back(run(g, o));
         }

@@ -57,7 +57,9 @@ void writeAndCheck(const std::string& pixelType, float limit) {
         "edges": [{"from": "input.color", "to": "output.color"}]})";
     TestGraph g{kestrel::parseGraph(json), "input.color"};
     g.desc.outputs.push_back(g.output);
-    run(g, RunOptions{1});
+    RunOptions options;
+    options.frames = 1;
+    run(g, options);
     const fs::path file = dir / "frame.0001.exr";
     ASSERT_TRUE(fs::exists(file));
     for (const char* ch : {"R", "G", "B"}) {
@@ -69,9 +71,12 @@ void writeAndCheck(const std::string& pixelType, float limit) {
             const float v = px[size_t(w + x)], in = kValues[x];
             ASSERT_TRUE(std::isfinite(v)) << ch << " input " << in << " stored as " << v;
             EXPECT_LE(std::fabs(v), limit) << ch << " input " << in;
-            if (std::isnan(in)) EXPECT_EQ(v, 0.f) << "NaN is written as 0";
-            if (std::isinf(in) || std::fabs(in) >= limit)
+            if (std::isnan(in)) {
+                EXPECT_EQ(v, 0.f) << "NaN is written as 0";
+            }
+            if (std::isinf(in) || std::fabs(in) >= limit) {
                 EXPECT_EQ(std::fabs(v), limit) << ch << " input " << in << " clamps to the limit";
+            }
         }
     }
     fs::remove_all(dir);
