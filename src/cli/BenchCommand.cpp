@@ -50,11 +50,6 @@ double median(std::vector<double> v) {
     return v[v.size() / 2];
 }
 
-bool isSourceType(const PassType& t) {
-    for (const auto& p : t.desc.ports)
-        if (p.kind == PortKind::Input) return false;
-    return true;
-}
 
 std::vector<Setting> makeSettings(const BenchOptions& o) {
     std::vector<Setting> settings;
@@ -132,7 +127,7 @@ int runBench(const BenchOptions& o) {
         GraphDesc g = loadGraphFile(s.graph);
         std::string source;
         for (const auto& p : g.passes)
-            if (const PassType* t = reg.find(p.type); t && isSourceType(*t) && t->desc.findParam("path")) {
+            if (const PassType* t = reg.find(p.type); t && isSource(*t)) {
                 source = p.name;
                 break;
             }

@@ -39,11 +39,7 @@ fs::path exeDir() {
     return fs::read_symlink("/proc/self/exe", ec).parent_path();
 }
 
-bool isSource(const PassType& t) {
-    for (const auto& p : t.desc.ports)
-        if (p.kind == PortKind::Input) return false;
-    return t.desc.findParam("path") != nullptr;
-}
+
 bool isSink(const PassType& t) { return t.desc.sink && t.desc.findParam("path") != nullptr; }
 
 std::string pathParam(const PassNode& n) {
@@ -82,6 +78,13 @@ void assignPaths(GraphDesc& g, const Registry& reg, const std::vector<std::strin
     }
 }
 }  // namespace
+
+bool isSourceType(const PassType& t) {
+    for (const auto& p : t.desc.ports)
+        if (p.kind == PortKind::Input) return false;
+    return true;
+}
+bool isSource(const PassType& t) { return isSourceType(t) && t.desc.findParam("path") != nullptr; }
 
 fs::path shippedGraph(const std::string& name) {
     fs::path installed = exeDir() / ".." / KESTREL_INSTALL_GRAPH_DIR / name;

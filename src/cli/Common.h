@@ -25,6 +25,11 @@ struct Plugins {
 };
 std::unique_ptr<Plugins> loadPlugins();
 
+/// A pass type with no inputs (a source: its time is reported apart from the filter's).
+bool isSourceType(const PassType& t);
+/// A source reading files: no inputs and a "path" parameter (what --input sets).
+bool isSource(const PassType& t);
+
 /// The graph shipped under `name` (e.g. "svgf.json"): install share dir or source tree.
 std::filesystem::path shippedGraph(const std::string& name);
 
