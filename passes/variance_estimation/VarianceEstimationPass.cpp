@@ -1,6 +1,7 @@
 #include "VarianceEstimationPass.h"
 
 #include <kestrel/PixelMath.h>
+#include <kestrel/SimdMath.h>
 
 using namespace kestrel;
 
@@ -31,82 +32,220 @@ VarianceEstimationPass::VarianceEstimationPass(const ParamValues& p)
     : sigmaZ_(p.getFloat("sigmaZ")),
       sigmaN_(p.getFloat("sigmaN")),
       sigmaL_(p.getFloat("sigmaL")),
-      minHistory_(p.getFloat("minHistoryLength")) {}
+      minHist_(p.getFloat("minHistoryLength")) {}
+
+namespace {
+
+namespace hn = hwy::HWY_NAMESPACE;
+using simd::DF;
+using simd::DI;
+using simd::MF;
+using simd::VF;
+using simd::VI;
+
+constexpr int kRadius = 3;  // 7x7 (SVGF section 4.2)
+
+struct Inputs {
+    int w, h;
+    const ImageView *color, *moments, *hist, *var, *depth, *normal;
+    const int32_t* ids;
+    float sigmaZ, sigmaN, invSigmaL;
+};
+
+/// The spatial estimate of one pixel, plain scalar code: used where a vector block would read
+/// outside the image (the first and last columns, the row's tail).
+void estimatePixel(const Inputs& in, int x, int y, float hl, float* c3, float* v) {
+    const int w = in.w, h = in.h;
+    auto col = [&](int c, int xq, int yq) { return px::sanitize(in.color->at(c, xq, yq)); };
+    auto lum = [&](int xq, int yq) {
+        return px::luminance(col(0, xq, yq), col(1, xq, yq), col(2, xq, yq));
+    };
+    auto z = [&](int xq, int yq) { return px::sanitizeDepth(in.depth->at(0, xq, yq)); };
+    auto nrm = [&](int c, int xq, int yq) { return px::sanitizeNormal(in.normal->at(c, xq, yq)); };
+    const bool l = x > 0, r = x + 1 < w, u = y > 0, d = y + 1 < h;
+    const float zp = z(x, y), lp = lum(x, y);
+    const float gx = px::minAbsDiff(l ? z(x - 1, y) : 0, zp, r ? z(x + 1, y) : 0, l, r);
+    const float gy = px::minAbsDiff(u ? z(x, y - 1) : 0, zp, d ? z(x, y + 1) : 0, u, d);
+    const float np[3] = {nrm(0, x, y), nrm(1, x, y), nrm(2, x, y)};
+    const int32_t* ids = in.ids;
+    const int32_t idp = ids ? ids[size_t(y) * size_t(w) + size_t(x)] : 0;
+    float sw = 0, sc[3] = {0, 0, 0}, m1 = 0, m2 = 0;
+    for (int j = -kRadius; j <= kRadius; ++j) {
+        const int yq = y + j;
+        if (yq < 0 || yq >= h) continue;
+        for (int i = -kRadius; i <= kRadius; ++i) {
+            const int xq = x + i;
+            if (xq < 0 || xq >= w) continue;
+            float wt = 1.f;  // the centre always counts fully
+            if (i != 0 || j != 0) {
+                if (ids && ids[size_t(yq) * size_t(w) + size_t(xq)] != idp) continue;
+                // Same edge-stopping functions as A-Trous (SVGF eq. 3-4), luminance on the raw
+                // difference (no variance yet: that is what we estimate).
+                const float ez =
+                    std::fabs(zp - z(xq, yq)) /
+                    (in.sigmaZ * std::fabs(gx * float(i) + gy * float(j)) + 1e-5f * zp + 1e-8f);
+                const float el = std::fabs(lp - lum(xq, yq)) * in.invSigmaL;
+                float e = -(ez + el) * px::kLog2e;
+                if (in.sigmaN > 0.f) {
+                    const float dot =
+                        np[0] * nrm(0, xq, yq) + np[1] * nrm(1, xq, yq) + np[2] * nrm(2, xq, yq);
+                    if (!(dot > 0.f)) continue;
+                    e += in.sigmaN * px::fastLog2(std::min(std::max(dot, 1e-30f), 1.f));
+                }
+                wt = px::fastExp2(e);
+            }
+            sw += wt;
+            for (int c = 0; c < 3; ++c) sc[c] += wt * col(c, xq, yq);
+            m1 += wt * px::sanitize(in.moments->at(0, xq, yq));
+            m2 += wt * px::sanitizePositive(in.moments->at(1, xq, yq), 1e32f);
+        }
+    }
+    const float inv = 1.f / sw;  // sw >= 1 (centre)
+    for (int c = 0; c < 3; ++c) c3[c] = sc[c] * inv;
+    m1 *= inv;
+    m2 *= inv;
+    // Boost: few samples underestimate the variance (Falcor: 4 / historyLength).
+    *v = std::max(0.f, m2 - m1 * m1) * (4.f / std::max(hl, 1.f));
+}
+
+/// The same estimate for the lanes of one vector at (x0.., y), all taps inside the row range
+/// [x0 - 3, x0 + lanes + 3). Lanes outside `need` keep the pass-through values already stored.
+void estimateBlock(const Inputs& in, int x0, int y, VF hl, MF need, float* oc[3], float* ov) {
+    const DF d;
+    const DI di;
+    const int w = in.w, h = in.h;
+    const size_t stride = size_t(w);
+    auto at = [&](const ImageView* im, int c, int dx, int yq) { return im->row(c, yq) + x0 + dx; };
+    auto colq = [&](int c, int dx, int yq) {
+        return simd::sanitize(hn::LoadU(d, at(in.color, c, dx, yq)));
+    };
+    auto zq = [&](int dx, int yq) {
+        return simd::sanitizeDepth(hn::LoadU(d, at(in.depth, 0, dx, yq)));
+    };
+    auto nq = [&](int c, int dx, int yq) {
+        return simd::sanitizeNormal(hn::LoadU(d, at(in.normal, c, dx, yq)));
+    };
+    const bool u = y > 0, dn = y + 1 < h;
+    const VF zp = zq(0, y);
+    const VF lp = simd::luminance(colq(0, 0, y), colq(1, 0, y), colq(2, 0, y));
+    const VF gx = simd::minAbsDiff(zq(-1, y), zp, zq(1, y), true, true);
+    const VF gy = simd::minAbsDiff(u ? zq(0, y - 1) : zp, zp, dn ? zq(0, y + 1) : zp, u, dn);
+    const VF npx = nq(0, 0, y), npy = nq(1, 0, y), npz = nq(2, 0, y);
+    const VI idp = in.ids ? hn::LoadU(di, in.ids + size_t(y) * stride + size_t(x0)) : hn::Zero(di);
+    const VF sigmaZ = hn::Set(d, in.sigmaZ), sigmaN = hn::Set(d, in.sigmaN);
+    const VF invSigmaL = hn::Set(d, in.invSigmaL), negLog2e = hn::Set(d, -px::kLog2e);
+    const VF epsZ = hn::MulAdd(hn::Set(d, 1e-5f), zp, hn::Set(d, 1e-8f));
+    const VF minDot = hn::Set(d, 1e-30f), one = hn::Set(d, 1.f);
+    const MF allLanes = hn::FirstN(d, hn::Lanes(d));
+    VF sw = hn::Zero(d), sr = sw, sg = sw, sb = sw, m1 = sw, m2 = sw;
+    for (int j = -kRadius; j <= kRadius; ++j) {
+        const int yq = y + j;
+        if (yq < 0 || yq >= h) continue;
+        const VF gyj = hn::Mul(gy, hn::Set(d, float(j)));
+        for (int i = -kRadius; i <= kRadius; ++i) {
+            const VF r = colq(0, i, yq), g = colq(1, i, yq), b = colq(2, i, yq);
+            VF wt = one;
+            if (i != 0 || j != 0) {
+                const VF denom =
+                    hn::MulAdd(sigmaZ, hn::Abs(hn::MulAdd(gx, hn::Set(d, float(i)), gyj)), epsZ);
+                const VF ez = hn::Div(hn::Abs(hn::Sub(zp, zq(i, yq))), denom);
+                const VF el = hn::Mul(hn::Abs(hn::Sub(lp, simd::luminance(r, g, b))), invSigmaL);
+                VF e = hn::Mul(hn::Add(ez, el), negLog2e);
+                MF keep = allLanes;
+                if (in.sigmaN > 0.f) {
+                    const VF dot =
+                        hn::MulAdd(npz, nq(2, i, yq),
+                                   hn::MulAdd(npy, nq(1, i, yq), hn::Mul(npx, nq(0, i, yq))));
+                    keep = hn::Gt(dot, hn::Zero(d));
+                    e = hn::MulAdd(sigmaN, simd::fastLog2(hn::Min(hn::Max(dot, minDot), one)), e);
+                }
+                wt = simd::fastExp2(e);
+                if (in.ids) {
+                    const VI idq = hn::LoadU(di, in.ids + size_t(yq) * stride + size_t(x0 + i));
+                    keep = hn::And(keep, hn::RebindMask(d, hn::Eq(idq, idp)));
+                }
+                wt = hn::IfThenElseZero(keep, wt);
+            }
+            sw = hn::Add(sw, wt);
+            sr = hn::MulAdd(wt, r, sr);
+            sg = hn::MulAdd(wt, g, sg);
+            sb = hn::MulAdd(wt, b, sb);
+            m1 = hn::MulAdd(wt, simd::sanitize(hn::LoadU(d, at(in.moments, 0, i, yq))), m1);
+            m2 = hn::MulAdd(
+                wt, simd::sanitizePositive(hn::LoadU(d, at(in.moments, 1, i, yq)), 1e32f), m2);
+        }
+    }
+    const VF inv = hn::Div(one, sw);  // sw >= 1 (centre)
+    const VF mean = hn::Mul(m1, inv);
+    const VF var = hn::Max(hn::Zero(d), hn::NegMulAdd(mean, mean, hn::Mul(m2, inv)));
+    const VF boost = hn::Div(hn::Set(d, 4.f), hn::Max(hl, one));
+    const VF acc[3] = {sr, sg, sb};
+    for (int c = 0; c < 3; ++c) {
+        float* p = oc[c] + x0;
+        hn::StoreU(hn::IfThenElse(need, hn::Mul(acc[c], inv), hn::LoadU(d, p)), d, p);
+    }
+    if (ov) {
+        float* p = ov + x0;
+        hn::StoreU(hn::IfThenElse(need, hn::Mul(var, boost), hn::LoadU(d, p)), d, p);
+    }
+}
+
+}  // namespace
 
 void VarianceEstimationPass::execute(FrameContext& ctx, PassIO& io) {
-    const int w = ctx.extent.width, h = ctx.extent.height;
-    const ImageView& color = io.input("color");
-    const ImageView& moments = io.input("moments");
-    const ImageView& hist = io.input("historyLength");
-    const ImageView& var = io.input("variance");
-    const ImageView& depth = io.input("depth");
-    const ImageView& normal = io.input("normal");
-    const int32_t* ids = io.hasInput("objectId") ? io.input("objectId").ints() : nullptr;
+    const DF d;
+    const int n = int(hn::Lanes(d));
+    Inputs in{ctx.extent.width,
+              ctx.extent.height,
+              &io.input("color"),
+              &io.input("moments"),
+              &io.input("historyLength"),
+              &io.input("variance"),
+              &io.input("depth"),
+              &io.input("normal"),
+              io.hasInput("objectId") ? io.input("objectId").ints() : nullptr,
+              sigmaZ_,
+              sigmaN_,
+              1.f / sigmaL_};
     const ImageView& outC = io.output("color");
     const ImageView* outV = io.hasOutput("variance") ? &io.output("variance") : nullptr;
-    const float sigmaZ = sigmaZ_, sigmaN = sigmaN_, invSigmaL = 1.f / sigmaL_;
-    const float minHist = minHistory_;
+    const int w = in.w;
+    const float minHist = minHist_;
 
-    auto col = [&](int c, int x, int y) { return px::sanitize(color.at(c, x, y)); };
-    auto lum = [&](int x, int y) {
-        return px::luminance(col(0, x, y), col(1, x, y), col(2, x, y));
-    };
-    auto z = [&](int x, int y) { return px::sanitizeDepth(depth.at(0, x, y)); };
-    auto nrm = [&](int c, int x, int y) { return px::sanitizeNormal(normal.at(c, x, y)); };
-
-    ctx.parallelRows(h, [&](int y0, int y1) {
-        for (int y = y0; y < y1; ++y)
-            for (int x = 0; x < w; ++x) {
-                const float hl = px::sanitizePositive(hist.at(0, x, y), 1e6f);
-                if (hl >= minHist) {  // long history: the temporal estimate stands
-                    for (int c = 0; c < 3; ++c) outC.at(c, x, y) = col(c, x, y);
-                    if (outV) outV->at(0, x, y) = px::sanitizePositive(var.at(0, x, y), 1e32f);
-                    continue;
-                }
-                const bool l = x > 0, r = x + 1 < w, u = y > 0, d = y + 1 < h;
-                const float zp = z(x, y), lp = lum(x, y);
-                const float gx = px::minAbsDiff(l ? z(x - 1, y) : 0, zp, r ? z(x + 1, y) : 0, l, r);
-                const float gy = px::minAbsDiff(u ? z(x, y - 1) : 0, zp, d ? z(x, y + 1) : 0, u, d);
-                const float np[3] = {nrm(0, x, y), nrm(1, x, y), nrm(2, x, y)};
-                const int32_t idp = ids ? ids[size_t(y) * size_t(w) + size_t(x)] : 0;
-                float sw = 0, sc[3] = {0, 0, 0}, m1 = 0, m2 = 0;
-                for (int j = -3; j <= 3; ++j) {
-                    const int yq = y + j;
-                    if (yq < 0 || yq >= h) continue;
-                    for (int i = -3; i <= 3; ++i) {
-                        const int xq = x + i;
-                        if (xq < 0 || xq >= w) continue;
-                        float wt = 1.f;  // the centre always counts fully
-                        if (i != 0 || j != 0) {
-                            if (ids && ids[size_t(yq) * size_t(w) + size_t(xq)] != idp) continue;
-                            // Same edge-stopping functions as A-Trous (SVGF eq. 3-4), luminance
-                            // on the raw difference (no variance yet: that is what we estimate).
-                            const float ez = std::fabs(zp - z(xq, yq)) /
-                                             (sigmaZ * std::fabs(gx * float(i) + gy * float(j)) +
-                                              1e-5f * zp + 1e-8f);
-                            const float el = std::fabs(lp - lum(xq, yq)) * invSigmaL;
-                            float e = -(ez + el) * px::kLog2e;
-                            if (sigmaN > 0.f) {
-                                const float dot = np[0] * nrm(0, xq, yq) + np[1] * nrm(1, xq, yq) +
-                                                  np[2] * nrm(2, xq, yq);
-                                if (!(dot > 0.f)) continue;
-                                e += sigmaN * px::fastLog2(std::min(std::max(dot, 1e-30f), 1.f));
-                            }
-                            wt = px::fastExp2(e);
-                        }
-                        sw += wt;
-                        for (int c = 0; c < 3; ++c) sc[c] += wt * col(c, xq, yq);
-                        m1 += wt * px::sanitize(moments.at(0, xq, yq));
-                        m2 += wt * px::sanitizePositive(moments.at(1, xq, yq), 1e32f);
-                    }
-                }
-                const float inv = 1.f / sw;  // sw >= 1 (centre)
-                for (int c = 0; c < 3; ++c) outC.at(c, x, y) = sc[c] * inv;
-                m1 *= inv;
-                m2 *= inv;
-                // Boost: few samples underestimate the variance (Falcor: 4 / historyLength).
-                const float boost = 4.f / std::max(hl, 1.f);
-                if (outV) outV->at(0, x, y) = std::max(0.f, m2 - m1 * m1) * boost;
+    ctx.parallelRows(in.h, [&](int y0, int y1) {
+        for (int y = y0; y < y1; ++y) {
+            float* oc[3] = {outC.row(0, y), outC.row(1, y), outC.row(2, y)};
+            float* ov = outV ? outV->row(0, y) : nullptr;
+            const float* hrow = in.hist->row(0, y);
+            // Everywhere first: the temporal estimate passes through (sanitised).
+            for (int c = 0; c < 3; ++c) {
+                const float* src = in.color->row(c, y);
+                for (int x = 0; x < w; ++x) oc[c][x] = px::sanitize(src[x]);
             }
+            if (ov) {
+                const float* src = in.var->row(0, y);
+                for (int x = 0; x < w; ++x) ov[x] = px::sanitizePositive(src[x], 1e32f);
+            }
+            // Then the spatial estimate where the history is short: whole vectors where all
+            // taps are inside the row, single pixels at the borders. Which pixels take which
+            // path depends only on the width, never on the thread count.
+            auto scalarAt = [&](int x) {
+                const float hl = px::sanitizePositive(hrow[x], 1e6f);
+                if (hl >= minHist) return;
+                float c3[3], v;
+                estimatePixel(in, x, y, hl, c3, &v);
+                for (int c = 0; c < 3; ++c) oc[c][x] = c3[c];
+                if (ov) ov[x] = v;
+            };
+            int x = 0;
+            for (; x < std::min(kRadius, w); ++x) scalarAt(x);
+            for (; x + n + kRadius <= w; x += n) {
+                const VF hl = simd::sanitizePositive(hn::LoadU(d, hrow + x), 1e6f);
+                const MF need = hn::Lt(hl, hn::Set(d, minHist));
+                if (hn::AllFalse(d, need)) continue;
+                estimateBlock(in, x, y, hl, need, oc, ov);
+            }
+            for (; x < w; ++x) scalarAt(x);
+        }
     });
 }

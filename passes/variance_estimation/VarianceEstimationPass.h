@@ -12,5 +12,5 @@ public:
     void execute(kestrel::FrameContext& ctx, kestrel::PassIO& io) override;
 
 private:
-    float sigmaZ_, sigmaN_, sigmaL_, minHistory_;
+    float sigmaZ_, sigmaN_, sigmaL_, minHist_;
 };

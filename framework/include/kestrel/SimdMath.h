@@ -1,0 +1,107 @@
+#pragma once
+// Vector forms of PixelMath's helpers, for kernels written with Google Highway (static dispatch:
+// the build's -march chooses the widest instruction set, AVX-512 or AVX2 here, SSE2 anywhere).
+// Each function evaluates the same formula as its scalar namesake in PixelMath.h; the vector
+// forms use fused multiply-add where the scalar ones (built with -ffp-contract=off by ISO C++)
+// do not, so results differ from the scalar ones by a few ulp, never more.
+//
+// Header-only; a pass that includes it links hwy::hwy (the framework itself does not).
+#include <hwy/highway.h>
+
+#include "kestrel/PixelMath.h"
+
+namespace kestrel::simd {
+
+namespace hn = hwy::HWY_NAMESPACE;
+using DF = hn::ScalableTag<float>;
+using DI = hn::RebindToSigned<DF>;
+using VF = hn::Vec<DF>;
+using VI = hn::Vec<DI>;
+using MF = hn::Mask<DF>;
+
+/// Lanes per vector of the build's target.
+inline size_t lanes() {
+    return hn::Lanes(DF());
+}
+
+/// px::sanitize: NaN and +-Inf -> 0, finite values clamped to +-limit.
+inline VF sanitize(VF v, float limit = px::kMaxRadiance) {
+    const DF d;
+    const VF c = hn::Min(hn::Max(v, hn::Set(d, -limit)), hn::Set(d, limit));
+    return hn::IfThenElseZero(hn::Le(hn::Abs(v), hn::Set(d, px::kFloatMax)), c);
+}
+
+/// px::sanitizePositive: non-negative and finite, else 0; clamped to limit.
+inline VF sanitizePositive(VF v, float limit = px::kMaxRadiance) {
+    const DF d;
+    const MF ok = hn::And(hn::Ge(v, hn::Zero(d)), hn::Le(v, hn::Set(d, px::kFloatMax)));
+    return hn::IfThenElseZero(ok, hn::Min(v, hn::Set(d, limit)));
+}
+
+/// px::sanitizeDepth: NaN, Inf, negative or beyond background -> background depth.
+inline VF sanitizeDepth(VF z) {
+    const DF d;
+    const VF bg = hn::Set(d, kBackgroundDepth);
+    return hn::IfThenElse(hn::And(hn::Ge(z, hn::Zero(d)), hn::Lt(z, bg)), z, bg);
+}
+
+/// px::sanitizeNormal: a component outside [-2, 2] (or NaN) -> 0.
+inline VF sanitizeNormal(VF v) {
+    const DF d;
+    return hn::IfThenElseZero(hn::Le(hn::Abs(v), hn::Set(d, 2.f)), v);
+}
+
+/// px::luminance (Rec. 709).
+inline VF luminance(VF r, VF g, VF b) {
+    const DF d;
+    return hn::MulAdd(hn::Set(d, 0.0722f), b,
+                      hn::MulAdd(hn::Set(d, 0.7152f), g, hn::Mul(hn::Set(d, 0.2126f), r)));
+}
+
+/// px::fastExp2: relative error below 2e-5 on [-126, 126]; exactly 0 below -127.
+inline VF fastExp2(VF x) {
+    const DF d;
+    const DI di;
+    const VF xc = hn::Min(hn::Max(x, hn::Set(d, -127.f)), hn::Set(d, 126.f));
+    const VF fl = hn::Floor(xc);
+    const VF f = hn::Sub(xc, fl);
+    VF p = hn::Set(d, 1.5403530e-4f);
+    p = hn::MulAdd(p, f, hn::Set(d, 1.3333558e-3f));
+    p = hn::MulAdd(p, f, hn::Set(d, 9.6181291e-3f));
+    p = hn::MulAdd(p, f, hn::Set(d, 5.5504109e-2f));
+    p = hn::MulAdd(p, f, hn::Set(d, 2.4022651e-1f));
+    p = hn::MulAdd(p, f, hn::Set(d, 6.9314718e-1f));
+    p = hn::MulAdd(p, f, hn::Set(d, 1.f));
+    const VI i = hn::ConvertTo(di, fl);
+    const VF scale = hn::BitCast(d, hn::ShiftLeft<23>(hn::Add(i, hn::Set(di, 127))));
+    return hn::Mul(p, scale);
+}
+
+/// px::fastLog2 for x > 0 (callers clamp): absolute error below 1e-6 on normal floats.
+inline VF fastLog2(VF x) {
+    const DF d;
+    const DI di;
+    const VI bits = hn::BitCast(di, x);
+    const VF e = hn::ConvertTo(d, hn::Sub(hn::ShiftRight<23>(bits), hn::Set(di, 127)));
+    const VF m =
+        hn::BitCast(d, hn::Or(hn::And(bits, hn::Set(di, 0x007fffff)), hn::Set(di, 0x3f800000)));
+    const VF one = hn::Set(d, 1.f);
+    const VF t = hn::Div(hn::Sub(m, one), hn::Add(m, one));
+    const VF t2 = hn::Mul(t, t);
+    VF s = hn::Set(d, 1.f / 9.f);
+    s = hn::MulAdd(s, t2, hn::Set(d, 1.f / 7.f));
+    s = hn::MulAdd(s, t2, hn::Set(d, 1.f / 5.f));
+    s = hn::MulAdd(s, t2, hn::Set(d, 1.f / 3.f));
+    s = hn::MulAdd(s, t2, one);
+    return hn::MulAdd(hn::Set(d, 2.8853900817779268f), hn::Mul(t, s), e);
+}
+
+/// px::minAbsDiff with the neighbours' presence uniform across lanes.
+inline VF minAbsDiff(VF prev, VF cur, VF next, bool hasPrev, bool hasNext) {
+    const VF b = hn::Sub(cur, prev), f = hn::Sub(next, cur);
+    if (!hasPrev) return hasNext ? f : hn::Zero(DF());
+    if (!hasNext) return b;
+    return hn::IfThenElse(hn::Le(hn::Abs(b), hn::Abs(f)), b, f);
+}
+
+}  // namespace kestrel::simd
