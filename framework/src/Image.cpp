@@ -1,21 +1,32 @@
 #include "kestrel/Image.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cstdlib>
 #include <new>
 
 namespace kestrel {
 
-void AlignedFree::operator()(float* p) const { std::free(p); }
+void AlignedFree::operator()(float* p) const {
+    if (p) std::free(reinterpret_cast<char*>(p) - shift);
+}
 
 PlaneStorage allocatePlane(size_t count) {
     // Round up to whole cache lines so every plane starts 64-byte aligned and SIMD loops may
     // read a full vector past the last pixel of a row without leaving the allocation.
-    size_t bytes = ((std::max<size_t>(count, 1) * sizeof(float) + 63) / 64) * 64;
-    void* p = std::aligned_alloc(64, bytes);
+    const size_t bytes = ((std::max<size_t>(count, 1) * sizeof(float) + 63) / 64) * 64;
+    // Large planes come page-aligned from mmap, so pixel (x, y) of every plane would share one
+    // L1 set (address bits 6-11): a kernel streaming a dozen planes at once (A-Trous reads 10
+    // per tap) then evicts its own lines, 8 ways being fewer than the planes. Successive planes
+    // start 7 cache lines further into a page (7 is coprime to the 64 sets), so up to 64
+    // planes read together fall into different sets.
+    static std::atomic<unsigned> counter{0};
+    const size_t shift = size_t((counter.fetch_add(1, std::memory_order_relaxed) * 7u) % 64u) * 64u;
+    void* p = std::aligned_alloc(64, bytes + shift);
     if (!p) throw std::bad_alloc();
-    std::fill_n(static_cast<float*>(p), bytes / sizeof(float), 0.f);
-    return PlaneStorage(static_cast<float*>(p));
+    float* plane = reinterpret_cast<float*>(static_cast<char*>(p) + shift);
+    std::fill_n(plane, bytes / sizeof(float), 0.f);
+    return PlaneStorage(plane, AlignedFree{shift});
 }
 
 Image::Image(Extent extent, Format format) {

@@ -29,11 +29,15 @@ struct ImageView {
     float& at(int c, int x, int y) const { return row(c, y)[x]; }
     /// The single plane of an Int32 image.
     int32_t* ints() const { return reinterpret_cast<int32_t*>(planes[0]); }
-    int32_t& atInt(int x, int y) const { return ints()[size_t(y) * size_t(extent.width) + size_t(x)]; }
+    int32_t& atInt(int x, int y) const {
+        return ints()[size_t(y) * size_t(extent.width) + size_t(x)];
+    }
 };
 
-/// 64-byte-aligned storage for `count` 32-bit values.
+/// 64-byte-aligned storage for `count` 32-bit values. Planes are staggered within a page (see
+/// allocatePlane) so that the deleter needs the plane's offset from its allocation.
 struct AlignedFree {
+    size_t shift = 0;
     void operator()(float* p) const;
 };
 using PlaneStorage = std::unique_ptr<float[], AlignedFree>;
