@@ -1,6 +1,7 @@
 #include "ATrousPass.h"
 
 #include <kestrel/PixelMath.h>
+#include <kestrel/SimdMath.h>
 
 #include <vector>
 
@@ -149,19 +150,22 @@ void horizontalInvL(const float* __restrict v, float* __restrict invL, int n, fl
     invL[n - 1] = finish((0.5f * v[n - 1] + 0.25f * v[n - 2]) / 0.75f);
 }
 
+/// The row-wise kernel: any column range [c0, c1), taps outside the image skipped. Used at the
+/// left and right borders, where filterBlock's vectors would read outside the row.
 template <bool kId, bool kNormal, bool kVar>
-void filterRows(int y0, int y1, int width, int height, const ATrousPass::Settings& s,
-                float* const* P, const int32_t* ids, const ImageView& outColor,
-                const ImageView* outVar) {
+void filterRows(int y0, int y1, int c0, int c1, int width, int height,
+                const ATrousPass::Settings& s, float* const* P, const int32_t* ids,
+                const ImageView& outColor, const ImageView* outVar) {
     // Rows are cut into tiles so that the centre row's planes and the accumulators of a tile
     // stay in L1 while the 24 taps sweep over it.
     constexpr int kTile = 256;
-    RowAcc acc(std::min(width, kTile));
+    if (c1 <= c0) return;
+    RowAcc acc(std::min(c1 - c0, kTile));
     const float kc = kH[2] * kH[2];
     for (int y = y0; y < y1; ++y) {
         const size_t rowP = size_t(y) * size_t(width);
-        for (int t0 = 0; t0 < width; t0 += kTile) {
-            const int t1 = std::min(width, t0 + kTile), tn = t1 - t0;
+        for (int t0 = c0; t0 < c1; t0 += kTile) {
+            const int t1 = std::min(c1, t0 + kTile), tn = t1 - t0;
             // The centre tap has w_z = w_n = w_l = 1 by definition (also on background pixels
             // with a zero normal), so the weight sum never vanishes.
             for (int k = 0; k < tn; ++k) {
@@ -206,6 +210,146 @@ void filterRows(int y0, int y1, int width, int height, const ATrousPass::Setting
                 // SVGF eq. 2: Var = sum(w^2 Var_q) / (sum w)^2
                 if (ov) ov[k] = acc.v[size_t(k)] * inv * inv;
             }
+        }
+    }
+}
+
+namespace hn = hwy::HWY_NAMESPACE;
+using simd::DF;
+using simd::DI;
+using simd::VF;
+using simd::VI;
+
+/// The same filter for K consecutive vectors of pixels (x0 .. x0 + K lanes) of row y whose 24
+/// taps all lie inside the row. The centres' terms and the accumulators stay in registers while
+/// the taps stream by (filterRows instead makes a round trip through memory per tap), and the K
+/// independent dependency chains (exp2, division, the normal's power) overlap in the pipeline.
+template <int K, int kSquarings, bool kId, bool kNormal, bool kVar>
+void filterBlocks(int x0, int y, int width, int height, const ATrousPass::Settings& s,
+                  float* const* P, const int32_t* ids, float* const oc[3], float* ov) {
+    const DF d;
+    const DI di;
+    const size_t n = hn::Lanes(d);
+    const size_t o = size_t(y) * size_t(width) + size_t(x0);
+    const VF kc = hn::Set(d, kH[2] * kH[2]);
+    VF cz[K], cl[K], cgx[K], cgy[K], cinvl[K], cnx[K], cny[K], cnz[K], epsZ[K];
+    VI cid[K];
+    VF aw[K], ar[K], ag[K], ab[K], av[K];
+#pragma GCC unroll 4
+    for (int k = 0; k < K; ++k) {
+        const size_t ok = o + size_t(k) * n;
+        cz[k] = hn::LoadU(d, P[Z] + ok);
+        cl[k] = hn::LoadU(d, P[L] + ok);
+        cgx[k] = hn::LoadU(d, P[GX] + ok);
+        cgy[k] = hn::LoadU(d, P[GY] + ok);
+        cinvl[k] = hn::LoadU(d, P[INVL] + ok);
+        cnx[k] = hn::LoadU(d, P[NX] + ok);
+        cny[k] = hn::LoadU(d, P[NY] + ok);
+        cnz[k] = hn::LoadU(d, P[NZ] + ok);
+        cid[k] = kId ? hn::LoadU(di, ids + ok) : hn::Zero(di);
+        epsZ[k] = hn::MulAdd(hn::Set(d, kEpsZRel), cz[k], hn::Set(d, kEpsZAbs));
+        aw[k] = kc;
+        ar[k] = hn::Mul(kc, hn::LoadU(d, P[R] + ok));
+        ag[k] = hn::Mul(kc, hn::LoadU(d, P[G] + ok));
+        ab[k] = hn::Mul(kc, hn::LoadU(d, P[B] + ok));
+        av[k] = kVar ? hn::Mul(hn::Mul(kc, kc), hn::LoadU(d, P[VAR] + ok)) : hn::Zero(d);
+    }
+    const VF sigmaZ = hn::Set(d, s.sigmaZ), sigmaN = hn::Set(d, s.sigmaN);
+    const VF negLog2e = hn::Set(d, -px::kLog2e), zeroWeight = hn::Set(d, kZeroWeight);
+    const VF minDot = hn::Set(d, kMinDot), one = hn::Set(d, 1.f), zero = hn::Zero(d);
+    const int intPower = simd::integerExponent(s.sigmaN);
+    for (int j = 0; j < 5; ++j) {
+        const int dy = (j - 2) * s.step;
+        const int yq = y + dy;
+        if (yq < 0 || yq >= height) continue;  // taps outside the image are skipped
+        for (int i = 0; i < 5; ++i) {
+            if (i == 2 && j == 2) continue;
+            const int dx = (i - 2) * s.step;
+            const VF fdx = hn::Set(d, float(dx)), fdy = hn::Set(d, float(dy));
+            const VF kh = hn::Set(d, kH[i] * kH[j]);
+#pragma GCC unroll 4
+            for (int k = 0; k < K; ++k) {
+                const size_t q = size_t(yq) * size_t(width) + size_t(x0 + dx) + size_t(k) * n;
+                // SVGF eq. 3 (depth) and eq. 5 (luminance, 1 / denominator precomputed).
+                const VF denomZ = hn::MulAdd(
+                    sigmaZ, hn::Abs(hn::MulAdd(cgx[k], fdx, hn::Mul(cgy[k], fdy))), epsZ[k]);
+                const VF ez = hn::Div(hn::Abs(hn::Sub(cz[k], hn::LoadU(d, P[Z] + q))), denomZ);
+                const VF el = hn::Mul(hn::Abs(hn::Sub(cl[k], hn::LoadU(d, P[L] + q))), cinvl[k]);
+                VF e = hn::Mul(hn::Add(ez, el), negLog2e);
+                VF w = kh;
+                if constexpr (kNormal) {  // SVGF eq. 4: max(0, n_p . n_q)^sigma_n
+                    const VF dot = hn::MulAdd(cnz[k], hn::LoadU(d, P[NZ] + q),
+                                              hn::MulAdd(cny[k], hn::LoadU(d, P[NY] + q),
+                                                         hn::Mul(cnx[k], hn::LoadU(d, P[NX] + q))));
+                    if constexpr (kSquarings > 0) {
+                        // sigma_n = 2^kSquarings (the default 128): products only.
+                        VF wn = hn::Min(hn::Max(dot, zero), one);
+#pragma GCC unroll 16
+                        for (int m = 0; m < kSquarings; ++m) wn = hn::Mul(wn, wn);
+                        w = hn::Mul(w, wn);
+                    } else if (intPower > 0) {  // another whole exponent
+                        w = hn::Mul(w, simd::powInt(hn::Min(hn::Max(dot, zero), one), intPower));
+                    } else {
+                        e = hn::MulAdd(sigmaN, simd::fastLog2(hn::Min(hn::Max(dot, minDot), one)),
+                                       e);
+                        e = hn::Add(e, hn::IfThenZeroElse(hn::Gt(dot, zero), zeroWeight));
+                    }
+                }
+                if constexpr (kId) {
+                    const auto same = hn::RebindMask(d, hn::Eq(cid[k], hn::LoadU(di, ids + q)));
+                    e = hn::Add(e, hn::IfThenZeroElse(same, zeroWeight));
+                }
+                w = hn::Mul(w, simd::fastExp2(e));
+                aw[k] = hn::Add(aw[k], w);
+                ar[k] = hn::MulAdd(w, hn::LoadU(d, P[R] + q), ar[k]);
+                ag[k] = hn::MulAdd(w, hn::LoadU(d, P[G] + q), ag[k]);
+                ab[k] = hn::MulAdd(w, hn::LoadU(d, P[B] + q), ab[k]);
+                if constexpr (kVar)
+                    av[k] = hn::MulAdd(hn::Mul(w, w), hn::LoadU(d, P[VAR] + q), av[k]);
+            }
+        }
+    }
+#pragma GCC unroll 4
+    for (int k = 0; k < K; ++k) {
+        const size_t xk = size_t(x0) + size_t(k) * n;
+        const VF inv = hn::Div(one, aw[k]);  // aw >= kc > 0
+        hn::StoreU(hn::Mul(ar[k], inv), d, oc[0] + xk);
+        hn::StoreU(hn::Mul(ag[k], inv), d, oc[1] + xk);
+        hn::StoreU(hn::Mul(ab[k], inv), d, oc[2] + xk);
+        // SVGF eq. 2: Var = sum(w^2 Var_q) / (sum w)^2
+        if (ov) hn::StoreU(hn::Mul(av[k], hn::Mul(inv, inv)), d, ov + xk);
+    }
+}
+
+/// Rows [y0, y1): vectors where every tap is inside the row, the row-wise kernel at the
+/// borders. Which pixels take which path depends only on the width and step.
+template <bool kId, bool kNormal, bool kVar>
+void filterRange(int y0, int y1, int width, int height, const ATrousPass::Settings& s,
+                 float* const* P, const int32_t* ids, const ImageView& outColor,
+                 const ImageView* outVar) {
+    constexpr int K = 2;
+    const int n = int(hn::Lanes(DF()));
+    const int reach = 2 * s.step;
+    const int first = std::min(width, reach);
+    const int blocks = std::max(0, (width - reach - first) / n);
+    const int last = first + blocks * n;
+    filterRows<kId, kNormal, kVar>(y0, y1, 0, first, width, height, s, P, ids, outColor, outVar);
+    filterRows<kId, kNormal, kVar>(y0, y1, last, width, width, height, s, P, ids, outColor, outVar);
+    for (int y = y0; y < y1; ++y) {
+        float* const oc[3] = {outColor.row(0, y), outColor.row(1, y), outColor.row(2, y)};
+        float* ov = outVar ? outVar->row(0, y) : nullptr;
+        int x = first;
+        // The default sigma_n = 128 = 2^7 gets a kernel with its seven squarings unrolled.
+        if (s.sigmaN == 128.f) {
+            for (; x + K * n <= last; x += K * n)
+                filterBlocks<K, 7, kId, kNormal, kVar>(x, y, width, height, s, P, ids, oc, ov);
+            for (; x < last; x += n)
+                filterBlocks<1, 7, kId, kNormal, kVar>(x, y, width, height, s, P, ids, oc, ov);
+        } else {
+            for (; x + K * n <= last; x += K * n)
+                filterBlocks<K, 0, kId, kNormal, kVar>(x, y, width, height, s, P, ids, oc, ov);
+            for (; x < last; x += n)
+                filterBlocks<1, 0, kId, kNormal, kVar>(x, y, width, height, s, P, ids, oc, ov);
         }
     }
 }
@@ -276,7 +420,7 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
     const Settings s = s_;
     ctx.parallelRows(height, [&](int y0, int y1) {
         auto run = [&](auto id, auto nrm, auto v) {
-            filterRows<decltype(id)::value, decltype(nrm)::value, decltype(v)::value>(
+            filterRange<decltype(id)::value, decltype(nrm)::value, decltype(v)::value>(
                 y0, y1, width, height, s, P, ids, outColor, outVar);
         };
         using T = std::true_type;
