@@ -76,12 +76,14 @@ private:
             if (!n.type) {
                 std::string msg = "unknown pass type '" + passes[i].type + "'";
                 std::string near = registry_.nearest(passes[i].type);
-                if (!near.empty()) msg += " (did you mean '" + near + "'?)";
-                else msg += " (see `kestrel passes` for the registered types)";
+                if (!near.empty())
+                    msg += " (did you mean '" + near + "'?)";
+                else
+                    msg += " (see `kestrel passes` for the registered types)";
                 diags_.push_back({path + ".type", msg});
             } else {
-                n.params = detail::checkParams(n.type->desc, json::parse(passes[i].paramsJson), path,
-                                               diags_);
+                n.params = detail::checkParams(n.type->desc, json::parse(passes[i].paramsJson),
+                                               path, diags_);
                 size_t ports = n.type->desc.ports.size();
                 n.inEdge.assign(ports, -1);
                 n.outAbsent.assign(ports, false);
@@ -120,26 +122,26 @@ private:
             if (s >= 0 && node(s).type) {
                 sp = portIndex(descOf(s), e.fromPort, PortKind::Output);
                 if (sp < 0)
-                    diags_.push_back({path + ".from", "pass '" + e.fromPass + "' (" +
-                                                          descOf(s).type + ") has no output '" +
-                                                          e.fromPort + "' (outputs: " +
-                                                          portList(descOf(s), PortKind::Output) + ")"});
+                    diags_.push_back(
+                        {path + ".from", "pass '" + e.fromPass + "' (" + descOf(s).type +
+                                             ") has no output '" + e.fromPort + "' (outputs: " +
+                                             portList(descOf(s), PortKind::Output) + ")"});
             }
             if (d >= 0 && node(d).type) {
                 dp = portIndex(descOf(d), e.toPort, PortKind::Input);
                 if (dp < 0)
-                    diags_.push_back({path + ".to", "pass '" + e.toPass + "' (" + descOf(d).type +
-                                                        ") has no input '" + e.toPort +
-                                                        "' (inputs: " +
-                                                        portList(descOf(d), PortKind::Input) + ")"});
+                    diags_.push_back(
+                        {path + ".to", "pass '" + e.toPass + "' (" + descOf(d).type +
+                                           ") has no input '" + e.toPort + "' (inputs: " +
+                                           portList(descOf(d), PortKind::Input) + ")"});
             }
             if (sp < 0 || dp < 0) continue;
             const PortDesc& out = descOf(s).ports[size_t(sp)];
             const PortDesc& in = descOf(d).ports[size_t(dp)];
             if (out.format != Format::Any && !formatAccepts(in.format, out.format))
                 diags_.push_back({path, "format mismatch: " + e.fromPass + "." + e.fromPort +
-                                            " is " + std::string(formatName(out.format)) +
-                                            " but " + e.toPass + "." + e.toPort + " expects " +
+                                            " is " + std::string(formatName(out.format)) + " but " +
+                                            e.toPass + "." + e.toPort + " expects " +
                                             std::string(formatName(in.format))});
             if (e.history && !in.history)
                 diags_.push_back({path + ".history", e.toPass + "." + e.toPort +
@@ -252,8 +254,9 @@ private:
             try {
                 n.pass = n.type->create(n.params);
             } catch (const std::exception& e) {
-                diags_.push_back({"passes[" + std::to_string(n.jsonIndex) + "]",
-                                  "pass '" + n.name + "' (" + n.type->desc.type + "): " + e.what()});
+                diags_.push_back(
+                    {"passes[" + std::to_string(n.jsonIndex) + "]",
+                     "pass '" + n.name + "' (" + n.type->desc.type + "): " + e.what()});
             }
         }
     }
@@ -270,11 +273,13 @@ private:
             NodeState& s = node(r.node);
             if (s.outAbsent[size_t(r.port)]) {
                 // Name the producer and the origin of the absence, not the whole chain between.
-                const std::string& origin = s.rootCause[size_t(r.port)].empty()
-                                                ? portName(r) + " is absent (" + s.absentReason[size_t(r.port)] + ")"
-                                                : s.rootCause[size_t(r.port)];
+                const std::string& origin =
+                    s.rootCause[size_t(r.port)].empty()
+                        ? portName(r) + " is absent (" + s.absentReason[size_t(r.port)] + ")"
+                        : s.rootCause[size_t(r.port)];
                 if (why)
-                    *why = s.absent ? "pass '" + s.name + "' is left out because " + origin : origin;
+                    *why =
+                        s.absent ? "pass '" + s.name + "' is left out because " + origin : origin;
                 if (root) *root = origin;
                 return std::nullopt;
             }
@@ -384,7 +389,8 @@ private:
         };
         for (size_t v = 0; v < g_->nodes.size(); ++v)
             if (descOf(int(v)).sink) {
-                if (node(int(v)).absent) rootFail("output pass '" + node(int(v)).name + "'", node(int(v)).absentWhy);
+                if (node(int(v)).absent)
+                    rootFail("output pass '" + node(int(v)).name + "'", node(int(v)).absentWhy);
                 live(int(v));
             }
         for (int v : rootNodes_) {
@@ -464,10 +470,15 @@ private:
                 node(v).portResource[p] = r;
                 node(v).portHistory[p] = hist;
                 auto& res = g_->resources[size_t(r)];
-                if (hist) res.history = true;
-                else res.lastUse = std::max(res.lastUse, execIndex[size_t(v)]);
+                if (hist) {
+                    res.history = true;
+                    res.lastHistoryRead = std::max(res.lastHistoryRead, execIndex[size_t(v)]);
+                } else
+                    res.lastUse = std::max(res.lastUse, execIndex[size_t(v)]);
             }
         }
+        for (auto& res : g_->resources)
+            res.doubleBuffered = res.history && res.lastHistoryRead >= res.firstUse;
         g_->markedResource.clear();
         for (auto [v, p] : g_->marked) {
             int r = getResource({v, p});
@@ -521,11 +532,21 @@ std::unique_ptr<CompiledGraph> compileGraph(const GraphDesc& graph, const Regist
 
 CompiledGraph::CompiledGraph(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 CompiledGraph::~CompiledGraph() = default;
-const GraphDesc& CompiledGraph::desc() const { return impl_->desc; }
-const CompileReport& CompiledGraph::report() const { return impl_->report; }
-const std::vector<ResourceInfo>& CompiledGraph::resources() const { return impl_->resources; }
-int CompiledGraph::transientPlaneCount() const { return impl_->transientPlanes; }
-int CompiledGraph::unaliasedPlaneCount() const { return impl_->unaliasedPlanes; }
+const GraphDesc& CompiledGraph::desc() const {
+    return impl_->desc;
+}
+const CompileReport& CompiledGraph::report() const {
+    return impl_->report;
+}
+const std::vector<ResourceInfo>& CompiledGraph::resources() const {
+    return impl_->resources;
+}
+int CompiledGraph::transientPlaneCount() const {
+    return impl_->transientPlanes;
+}
+int CompiledGraph::unaliasedPlaneCount() const {
+    return impl_->unaliasedPlanes;
+}
 
 std::vector<std::string> CompiledGraph::executionOrder() const {
     std::vector<std::string> r;
@@ -540,7 +561,8 @@ std::vector<std::pair<std::string, Pass*>> CompiledGraph::livePasses() const {
     return r;
 }
 
-std::vector<std::pair<std::string, Pass*>> CompiledGraph::passesOfType(const std::string& type) const {
+std::vector<std::pair<std::string, Pass*>> CompiledGraph::passesOfType(
+    const std::string& type) const {
     std::vector<std::pair<std::string, Pass*>> r;
     for (const auto& n : impl_->nodes)
         if (n.type && n.type->desc.type == type && n.pass) r.emplace_back(n.name, n.pass.get());
@@ -587,25 +609,32 @@ std::string CompiledGraph::toDot() const {
     for (const auto& p : g.report.elided) leftOut[p.pass] = "left out: " + p.reason;
     for (const auto& n : g.nodes) {
         std::string type = n.type ? n.type->desc.type : "?";
-        o << "  \"" << dotEscape(n.name) << "\" [label=\"" << dotEscape(n.name) << "\\n(" << type << ")";
+        o << "  \"" << dotEscape(n.name) << "\" [label=\"" << dotEscape(n.name) << "\\n(" << type
+          << ")";
         auto it = leftOut.find(n.name);
         if (it != leftOut.end())
-            o << "\\n" << dotEscape(it->second) << "\", style=\"rounded,dashed\", color=gray50, fontcolor=gray50];\n";
+            o << "\\n"
+              << dotEscape(it->second)
+              << "\", style=\"rounded,dashed\", color=gray50, fontcolor=gray50];\n";
         else
             o << "\", style=\"rounded,filled\", fillcolor=\"#dde8f5\"];\n";
     }
     for (const auto& e : g.desc.edges) {
         std::string label = dotEscape(e.fromPort + " -> " + e.toPort);
         // Which memory the edge's resource lives in: planes shared by several resources alias.
-        auto srcIt = std::find_if(g.nodes.begin(), g.nodes.end(), [&](const NodeState& n) { return n.name == e.fromPass; });
+        auto srcIt = std::find_if(g.nodes.begin(), g.nodes.end(),
+                                  [&](const NodeState& n) { return n.name == e.fromPass; });
         if (srcIt != g.nodes.end() && srcIt->type) {
             int p = -1;
             const auto& ports = srcIt->type->desc.ports;
             for (size_t i = 0; i < ports.size(); ++i)
                 if (ports[i].name == e.fromPort && ports[i].kind == PortKind::Output) p = int(i);
-            if (p >= 0 && srcIt->portResource.size() > size_t(p) && srcIt->portResource[size_t(p)] >= 0) {
+            if (p >= 0 && srcIt->portResource.size() > size_t(p) &&
+                srcIt->portResource[size_t(p)] >= 0) {
                 const auto& r = g.resources[size_t(srcIt->portResource[size_t(p)])];
-                if (r.history) label += "\\n[history, 2 buffers]";
+                if (r.history)
+                    label += r.doubleBuffered ? "\\n[history, 2 buffers]"
+                                              : "\\n[history, 1 buffer: read, then rewritten]";
                 else if (!r.planes.empty()) {
                     label += "\\n[mem planes";
                     for (int pl : r.planes) label += " " + std::to_string(pl);
@@ -615,7 +644,8 @@ std::string CompiledGraph::toDot() const {
         }
         o << "  \"" << dotEscape(e.fromPass) << "\" -> \"" << dotEscape(e.toPass) << "\" [label=\""
           << label << "\"";
-        if (e.history) o << ", style=dashed, color=\"#c0392b\", fontcolor=\"#c0392b\", constraint=false";
+        if (e.history)
+            o << ", style=dashed, color=\"#c0392b\", fontcolor=\"#c0392b\", constraint=false";
         o << "];\n";
     }
     o << "  label=\"" << dotEscape(g.desc.name) << ": " << g.order.size() << " live passes, "

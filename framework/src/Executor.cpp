@@ -67,11 +67,14 @@ struct Executor::Impl {
     RunInfo run;
     Extent defaultExtent;
     Extent extent{};
-    std::vector<PlaneStorage> transient;            // physical planes shared by transient resources
-    std::vector<std::array<PlaneStorage, 4>> hist[2];  // history resources: two buffers each
-    int current = 0;                                 // which history buffer is written this frame
+    std::vector<PlaneStorage> transient;  // physical planes shared by transient resources
+    // History resources: double-buffered ones are written to hist[current] and read last
+    // frame's value from hist[1 - current]; single-buffered ones (every reader of last frame's
+    // value runs before the producer) live in hist[0] only, read and then rewritten.
+    std::vector<std::array<PlaneStorage, 4>> hist[2];
+    int current = 0;
     bool historyValid = false;
-    std::vector<NodeIO> io;                          // per executed pass
+    std::vector<NodeIO> io;  // per executed pass
     std::vector<PassTime> times;
     double frameMs = 0;
     SceneData scene[2];
@@ -88,7 +91,8 @@ struct Executor::Impl {
         for (size_t k = 0; k < g.order.size(); ++k) {
             const NodeState& n = g.nodes[size_t(g.order[k])];
             io[k].passName = n.name;
-            for (const auto& port : n.type->desc.ports) io[k].slots.push_back({&port, {}, false, false});
+            for (const auto& port : n.type->desc.ports)
+                io[k].slots.push_back({&port, {}, false, false});
         }
     }
 
@@ -99,7 +103,7 @@ struct Executor::Impl {
         v.format = res.format;
         for (int c = 0; c < channelCount(res.format); ++c) {
             if (res.history) {
-                int buf = previous ? 1 - current : current;
+                int buf = !res.doubleBuffered ? 0 : previous ? 1 - current : current;
                 v.planes[size_t(c)] = hist[buf][size_t(r)][size_t(c)].get();
             } else {
                 v.planes[size_t(c)] = transient[size_t(res.planes[size_t(c)])].get();
@@ -118,8 +122,10 @@ struct Executor::Impl {
             hist[b].clear();
             hist[b].resize(g.resources.size());
             for (size_t r = 0; r < g.resources.size(); ++r) {
-                if (!g.resources[r].history) continue;
-                for (int c = 0; c < channelCount(g.resources[r].format); ++c) {
+                const ResourceInfo& res = g.resources[r];
+                if (!res.history) continue;
+                for (int c = 0; c < channelCount(res.format); ++c) {
+                    if (b == 1 && !res.doubleBuffered) continue;  // one buffer: hist[0]
                     hist[b][r][size_t(c)] = allocatePlane(px);
                     ++histPlanes;
                 }
@@ -249,11 +255,21 @@ void Executor::endRun() {
     for (int v : impl_->g.order) impl_->g.nodes[size_t(v)].pass->endRun();
 }
 
-const std::vector<PassTime>& Executor::lastTimes() const { return impl_->times; }
-double Executor::lastFrameMs() const { return impl_->frameMs; }
-const MemoryStats& Executor::memory() const { return impl_->memory; }
-Extent Executor::extent() const { return impl_->extent; }
-int64_t Executor::framesRun() const { return impl_->frames; }
+const std::vector<PassTime>& Executor::lastTimes() const {
+    return impl_->times;
+}
+double Executor::lastFrameMs() const {
+    return impl_->frameMs;
+}
+const MemoryStats& Executor::memory() const {
+    return impl_->memory;
+}
+Extent Executor::extent() const {
+    return impl_->extent;
+}
+int64_t Executor::framesRun() const {
+    return impl_->frames;
+}
 
 ImageView Executor::output(std::string_view passPort) const {
     const auto& g = impl_->g;

@@ -25,18 +25,23 @@ struct LeftOutPass {
 };
 
 struct CompileReport {
-    std::vector<std::string> notes;       ///< adaptation notes from resolve()
-    std::vector<LeftOutPass> pruned;      ///< contributes to no output
-    std::vector<LeftOutPass> elided;      ///< identity for this scene (outputs forwarded)
-    std::vector<std::string> absent;      ///< "pass.port: reason" outputs the scene lacks
+    std::vector<std::string> notes;   ///< adaptation notes from resolve()
+    std::vector<LeftOutPass> pruned;  ///< contributes to no output
+    std::vector<LeftOutPass> elided;  ///< identity for this scene (outputs forwarded)
+    std::vector<std::string> absent;  ///< "pass.port: reason" outputs the scene lacks
 };
 
 /// A resource slot: one produced output, possibly sharing memory with others (aliasing).
 struct ResourceInfo {
     std::string producer;  ///< "pass.port"
     Format format = Format::Float;
-    bool history = false;  ///< double-buffered, read next frame
-    bool marked = false;   ///< a graph output, kept to the end of the frame
+    bool history = false;  ///< read next frame (persists across frames)
+    /// A history resource needs a second buffer only if some pass reads last frame's value at
+    /// or after the producer writes this frame's. When every history reader runs first, the
+    /// one buffer is read (last frame) and then overwritten (this frame).
+    bool doubleBuffered = false;
+    int lastHistoryRead = -1;       ///< execution index of the last pass reading last frame's value
+    bool marked = false;            ///< a graph output, kept to the end of the frame
     int firstUse = 0, lastUse = 0;  ///< execution-order indices
     std::vector<int> planes;        ///< physical plane slots (transient) it occupies
 };

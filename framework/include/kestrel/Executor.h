@@ -19,7 +19,7 @@ struct PassTime {
 
 struct MemoryStats {
     size_t transientPlanes = 0;  ///< physical planes backing transient resources
-    size_t historyPlanes = 0;    ///< planes of history resources (both buffers)
+    size_t historyPlanes = 0;    ///< planes of history resources (every buffer allocated)
     size_t markedPlanes = 0;     ///< planes of marked outputs
     size_t bytes = 0;            ///< all graph resource memory now allocated
     size_t peakBytes = 0;

@@ -2,6 +2,7 @@
 // resolution change, checked value by value through the executor's marked outputs.
 #include <gtest/gtest.h>
 
+#include <map>
 #include <string>
 
 #include "TestPasses.h"
@@ -97,6 +98,35 @@ TEST(History, ReaderSeesAnotherPassesPreviousFrame) {
     ex.resetHistory();
     ex.runFrame(13);
     EXPECT_EQ(ex.output("prev.out").at(0, 1, 1), -1.f);
+    // Its only history reader runs before the producer: one buffer, read then rewritten.
+    EXPECT_EQ(ex.memory().historyPlanes, 1u);
+}
+
+TEST(History, OneBufferWhenEveryReaderRunsBeforeTheProducer) {
+    Registry r = testRegistry();
+    // `prev` reads last frame's clock before `clock` runs: single-buffered, and still correct
+    // over frames; the counter reads its own last value while writing: two buffers.
+    auto g = compileText(R"({"kestrel": 1, "passes": [{"name": "prev", "type": "Previous"},
+        {"name": "clock", "type": "FrameNumber"}, {"name": "count", "type": "Counter"}],
+        "edges": [{"from": "clock.out", "to": "prev.prev", "history": true},
+                  {"from": "count.out", "to": "count.prev", "history": true}],
+        "outputs": ["prev.out", "clock.out", "count.out"]})",
+                         r);
+    std::map<std::string, bool> twoBuffers;
+    for (const auto& res : g->resources())
+        if (res.history) twoBuffers[res.producer] = res.doubleBuffered;
+    EXPECT_EQ(twoBuffers, (std::map<std::string, bool>{{"clock.out", false}, {"count.out", true}}));
+    Parallel par(1);
+    Executor ex(*g, par);
+    for (int f = 20; f < 24; ++f) {
+        ex.runFrame(f);
+        EXPECT_EQ(ex.output("prev.out").at(0, 0, 0), f == 20 ? -1.f : float(f - 1));
+        EXPECT_EQ(ex.output("clock.out").at(0, 0, 0), float(f));
+        EXPECT_EQ(ex.output("count.out").at(0, 0, 0), float(f - 19));
+    }
+    EXPECT_EQ(ex.memory().historyPlanes, 3u);  // clock 1 + counter 2
+    ex.runFrame(30);  // a skipped frame number does not matter; only order does
+    EXPECT_EQ(ex.output("prev.out").at(0, 0, 0), 23.f);
 }
 
 /// Throws on one chosen frame, after the counter has already written its output.
