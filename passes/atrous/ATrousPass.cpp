@@ -55,7 +55,7 @@ constexpr float kEpsZAbs = 1e-8f;
 constexpr float kMinDot = 1e-30f;
 constexpr float kZeroWeight = -1e4f;  // log2 weight penalty: fastExp2 returns exactly 0
 
-enum Plane { R, G, B, L, Z, GX, GY, NX, NY, NZ, VAR, INVL, kPlaneCount };
+enum Plane { R, G, B, L, Z, GX, GY, NX, NY, NZ, VAR, INVL, ID, kPlaneCount };
 
 /// Accumulators of one output row.
 struct RowAcc {
@@ -154,7 +154,7 @@ void horizontalInvL(const float* __restrict v, float* __restrict invL, int n, fl
 /// left and right borders, where filterBlock's vectors would read outside the row.
 template <bool kId, bool kNormal, bool kVar>
 void filterRows(int y0, int y1, int c0, int c1, int width, int height,
-                const ATrousPass::Settings& s, float* const* P, const int32_t* ids,
+                const ATrousPass::Settings& s, float* const* P, int base, const int32_t* ids,
                 const ImageView& outColor, const ImageView* outVar) {
     // Rows are cut into tiles so that the centre row's planes and the accumulators of a tile
     // stay in L1 while the 24 taps sweep over it.
@@ -163,7 +163,7 @@ void filterRows(int y0, int y1, int c0, int c1, int width, int height,
     RowAcc acc(std::min(c1 - c0, kTile));
     const float kc = kH[2] * kH[2];
     for (int y = y0; y < y1; ++y) {
-        const size_t rowP = size_t(y) * size_t(width);
+        const size_t rowP = size_t(y - base) * size_t(width);
         for (int t0 = c0; t0 < c1; t0 += kTile) {
             const int t1 = std::min(c1, t0 + kTile), tn = t1 - t0;
             // The centre tap has w_z = w_n = w_l = 1 by definition (also on background pixels
@@ -187,7 +187,7 @@ void filterRows(int y0, int y1, int c0, int c1, int width, int height,
                     const int xs = std::max(t0, -dx), xe = std::min(t1, width - dx);
                     if (xs >= xe) continue;
                     const size_t cp = rowP + size_t(xs);
-                    const size_t qp = size_t(yq) * size_t(width) + size_t(xs + dx);
+                    const size_t qp = size_t(yq - base) * size_t(width) + size_t(xs + dx);
                     const size_t ap = size_t(xs - t0);
                     auto c = [&](int plane) { return P[plane] + cp; };
                     auto q = [&](int plane) { return P[plane] + qp; };
@@ -226,11 +226,11 @@ using simd::VI;
 /// independent dependency chains (exp2, division, the normal's power) overlap in the pipeline.
 template <int K, int kSquarings, bool kId, bool kNormal, bool kVar>
 void filterBlocks(int x0, int y, int width, int height, const ATrousPass::Settings& s,
-                  float* const* P, const int32_t* ids, float* const oc[3], float* ov) {
+                  float* const* P, int base, const int32_t* ids, float* const oc[3], float* ov) {
     const DF d;
     const DI di;
     const size_t n = hn::Lanes(d);
-    const size_t o = size_t(y) * size_t(width) + size_t(x0);
+    const size_t o = size_t(y - base) * size_t(width) + size_t(x0);
     const VF kc = hn::Set(d, kH[2] * kH[2]);
     VF cz[K], cl[K], cgx[K], cgy[K], cinvl[K], cnx[K], cny[K], cnz[K], epsZ[K];
     VI cid[K];
@@ -269,7 +269,8 @@ void filterBlocks(int x0, int y, int width, int height, const ATrousPass::Settin
             const VF kh = hn::Set(d, kH[i] * kH[j]);
 #pragma GCC unroll 4
             for (int k = 0; k < K; ++k) {
-                const size_t q = size_t(yq) * size_t(width) + size_t(x0 + dx) + size_t(k) * n;
+                const size_t q =
+                    size_t(yq - base) * size_t(width) + size_t(x0 + dx) + size_t(k) * n;
                 // SVGF eq. 3 (depth) and eq. 5 (luminance, 1 / denominator precomputed).
                 const VF denomZ = hn::MulAdd(
                     sigmaZ, hn::Abs(hn::MulAdd(cgx[k], fdx, hn::Mul(cgy[k], fdy))), epsZ[k]);
@@ -325,7 +326,7 @@ void filterBlocks(int x0, int y, int width, int height, const ATrousPass::Settin
 /// borders. Which pixels take which path depends only on the width and step.
 template <bool kId, bool kNormal, bool kVar>
 void filterRange(int y0, int y1, int width, int height, const ATrousPass::Settings& s,
-                 float* const* P, const int32_t* ids, const ImageView& outColor,
+                 float* const* P, int base, const int32_t* ids, const ImageView& outColor,
                  const ImageView* outVar) {
     constexpr int K = 2;
     const int n = int(hn::Lanes(DF()));
@@ -333,8 +334,10 @@ void filterRange(int y0, int y1, int width, int height, const ATrousPass::Settin
     const int first = std::min(width, reach);
     const int blocks = std::max(0, (width - reach - first) / n);
     const int last = first + blocks * n;
-    filterRows<kId, kNormal, kVar>(y0, y1, 0, first, width, height, s, P, ids, outColor, outVar);
-    filterRows<kId, kNormal, kVar>(y0, y1, last, width, width, height, s, P, ids, outColor, outVar);
+    filterRows<kId, kNormal, kVar>(y0, y1, 0, first, width, height, s, P, base, ids, outColor,
+                                   outVar);
+    filterRows<kId, kNormal, kVar>(y0, y1, last, width, width, height, s, P, base, ids, outColor,
+                                   outVar);
     for (int y = y0; y < y1; ++y) {
         float* const oc[3] = {outColor.row(0, y), outColor.row(1, y), outColor.row(2, y)};
         float* ov = outVar ? outVar->row(0, y) : nullptr;
@@ -342,14 +345,18 @@ void filterRange(int y0, int y1, int width, int height, const ATrousPass::Settin
         // The default sigma_n = 128 = 2^7 gets a kernel with its seven squarings unrolled.
         if (s.sigmaN == 128.f) {
             for (; x + K * n <= last; x += K * n)
-                filterBlocks<K, 7, kId, kNormal, kVar>(x, y, width, height, s, P, ids, oc, ov);
+                filterBlocks<K, 7, kId, kNormal, kVar>(x, y, width, height, s, P, base, ids, oc,
+                                                       ov);
             for (; x < last; x += n)
-                filterBlocks<1, 7, kId, kNormal, kVar>(x, y, width, height, s, P, ids, oc, ov);
+                filterBlocks<1, 7, kId, kNormal, kVar>(x, y, width, height, s, P, base, ids, oc,
+                                                       ov);
         } else {
             for (; x + K * n <= last; x += K * n)
-                filterBlocks<K, 0, kId, kNormal, kVar>(x, y, width, height, s, P, ids, oc, ov);
+                filterBlocks<K, 0, kId, kNormal, kVar>(x, y, width, height, s, P, base, ids, oc,
+                                                       ov);
             for (; x < last; x += n)
-                filterBlocks<1, 0, kId, kNormal, kVar>(x, y, width, height, s, P, ids, oc, ov);
+                filterBlocks<1, 0, kId, kNormal, kVar>(x, y, width, height, s, P, base, ids, oc,
+                                                       ov);
         }
     }
 }
@@ -367,75 +374,93 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
     const ImageView& outColor = io.output("color");
     const ImageView* outVar = hasVar && io.hasOutput("variance") ? &io.output("variance") : nullptr;
 
-    auto lease = ScratchArena::acquire(kPlaneCount, ctx.extent.pixels());
-    float* P[kPlaneCount];
-    for (int k = 0; k < kPlaneCount; ++k) P[k] = lease[size_t(k)];
-
-    // Pass 1: sanitised copies and luminance (inputs may hold NaN/Inf; nothing below may).
-    // One plane per loop: two streams each, so every loop vectorises.
-    ctx.parallelRows(height, [&](int y0, int y1) {
-        for (int y = y0; y < y1; ++y) {
-            const size_t o = size_t(y) * size_t(width);
-            for (int c = 0; c < 3; ++c) {
-                copySanitized(color.row(c, y), P[R + c] + o, width,
-                              [](float v) { return px::sanitize(v); });
-                copySanitized(normal.row(c, y), P[NX + c] + o, width, px::sanitizeNormal);
-            }
-            copySanitized(depth.row(0, y), P[Z] + o, width, px::sanitizeDepth);
-            if (var)
-                copySanitized(var->row(0, y), P[VAR] + o, width,
-                              [](float v) { return px::sanitizePositive(v, 1e32f); });
-            lumaRow(P[R] + o, P[G] + o, P[B] + o, P[L] + o, width);
-        }
-    });
-    // Pass 2: depth gradient (edge-preserving one-sided differences) and the luminance weight's
-    // 1 / (sigma_l sqrt(g3x3(Var)) + eps) with a 3x3 Gaussian prefilter (SVGF section 4.4),
-    // renormalised at the image border.
+    // The image is filtered in bands of rows, each with private scratch planes covering the
+    // band and the rows its taps reach (2 step above and below, plus one for the 3x3 terms):
+    // scratch then scales with the band, not the frame (about 20 MB per thread at 1080p and
+    // step 16 instead of 110 MB), at the cost of recomputing the halo rows' terms. Every value
+    // depends only on its pixel's neighbourhood, so results do not depend on the banding.
+    const int reach = 2 * s_.step;
+    const int band = std::min(height, std::max(32, 2 * reach));
+    const int bands = (height + band - 1) / band;
+    const int maxRows = std::min(height, band + 2 * reach + 2);
+    const size_t bandPixels = size_t(maxRows) * size_t(width);
     const float sigmaL = s_.sigmaL, sigmaColor = s_.sigmaColor;
-    ctx.parallelRows(height, [&](int y0, int y1) {
-        std::vector<float> vcol(static_cast<size_t>(width));
-        for (int y = y0; y < y1; ++y) {
-            const size_t o = size_t(y) * size_t(width);
-            const bool up = y > 0, down = y + 1 < height;
-            const float* z = P[Z] + o;
-            gradientRow(z, up ? z - width : z, down ? z + width : z, P[GX] + o, P[GY] + o, width,
-                        up, down);
-            if (!var) {
-                std::fill(P[INVL] + o, P[INVL] + o + width, 1.f / (sigmaColor + kEpsL));
-                continue;
-            }
-            // Separable 3x3 Gaussian (1/4, 1/2, 1/4)^2: vertical, then horizontal; weights of
-            // taps outside the image are dropped and the rest renormalised.
-            const float* v = P[VAR] + o;
-            const float* va = up ? v - width : v;
-            const float* vb = down ? v + width : v;
-            const float wa = up ? 0.25f : 0.f, wb = down ? 0.25f : 0.f;
-            const float vNorm = 1.f / (0.5f + wa + wb);
-            verticalRow(va, v, vb, wa, wb, vNorm, vcol.data(), width);
-            horizontalInvL(vcol.data(), P[INVL] + o, width, sigmaL);
-        }
-    });
-    // Pass 3: the filter itself.
     const bool useNormal = s_.sigmaN > 0.f;
     const Settings s = s_;
-    ctx.parallelRows(height, [&](int y0, int y1) {
-        auto run = [&](auto id, auto nrm, auto v) {
-            filterRange<decltype(id)::value, decltype(nrm)::value, decltype(v)::value>(
-                y0, y1, width, height, s, P, ids, outColor, outVar);
-        };
-        using T = std::true_type;
-        using F = std::false_type;
-        const bool withVar = outVar != nullptr;
-        if (ids) {
-            if (useNormal)
-                withVar ? run(T{}, T{}, T{}) : run(T{}, T{}, F{});
-            else
-                withVar ? run(T{}, F{}, T{}) : run(T{}, F{}, F{});
-        } else {
-            if (useNormal)
-                withVar ? run(F{}, T{}, T{}) : run(F{}, T{}, F{});
-            else
-                withVar ? run(F{}, F{}, T{}) : run(F{}, F{}, F{});
-        }
-    });
+    ctx.parallel->forRange(
+        0, bands,
+        [&](int i0, int i1) {
+            auto lease = ScratchArena::acquire(kPlaneCount, bandPixels);
+            float* P[kPlaneCount];
+            for (int k = 0; k < kPlaneCount; ++k) P[k] = lease[size_t(k)];
+            std::vector<float> vcol(static_cast<size_t>(width));
+            for (int i = i0; i < i1; ++i) {
+                const int y0 = i * band, y1 = std::min(height, y0 + band);
+                const int r0 = std::max(0, y0 - reach), r1 = std::min(height, y1 + reach);
+                const int base = std::max(0, r0 - 1), p1 = std::min(height, r1 + 1);
+                auto off = [&](int y) { return size_t(y - base) * size_t(width); };
+                // Pass 1: sanitised copies and luminance (inputs may hold NaN/Inf; nothing below
+                // may). One plane per loop: two streams each, so every loop vectorises.
+                for (int y = base; y < p1; ++y) {
+                    const size_t o = off(y);
+                    for (int c = 0; c < 3; ++c) {
+                        copySanitized(color.row(c, y), P[R + c] + o, width,
+                                      [](float v) { return px::sanitize(v); });
+                        copySanitized(normal.row(c, y), P[NX + c] + o, width, px::sanitizeNormal);
+                    }
+                    copySanitized(depth.row(0, y), P[Z] + o, width, px::sanitizeDepth);
+                    if (var)
+                        copySanitized(var->row(0, y), P[VAR] + o, width,
+                                      [](float v) { return px::sanitizePositive(v, 1e32f); });
+                    if (ids)
+                        std::copy_n(ids + size_t(y) * size_t(width), width,
+                                    reinterpret_cast<int32_t*>(P[ID]) + o);
+                    lumaRow(P[R] + o, P[G] + o, P[B] + o, P[L] + o, width);
+                }
+                // Pass 2: depth gradient (edge-preserving one-sided differences) and the luminance
+                // weight's 1 / (sigma_l sqrt(g3x3(Var)) + eps) with a 3x3 Gaussian prefilter (SVGF
+                // section 4.4), renormalised at the image border.
+                for (int y = r0; y < r1; ++y) {
+                    const size_t o = off(y);
+                    const bool up = y > 0, down = y + 1 < height;
+                    const float* z = P[Z] + o;
+                    gradientRow(z, up ? z - width : z, down ? z + width : z, P[GX] + o, P[GY] + o,
+                                width, up, down);
+                    if (!var) {
+                        std::fill(P[INVL] + o, P[INVL] + o + width, 1.f / (sigmaColor + kEpsL));
+                        continue;
+                    }
+                    // Separable 3x3 Gaussian (1/4, 1/2, 1/4)^2: vertical, then horizontal; weights
+                    // of taps outside the image are dropped and the rest renormalised.
+                    const float* v = P[VAR] + o;
+                    const float* va = up ? v - width : v;
+                    const float* vb = down ? v + width : v;
+                    const float wa = up ? 0.25f : 0.f, wb = down ? 0.25f : 0.f;
+                    const float vNorm = 1.f / (0.5f + wa + wb);
+                    verticalRow(va, v, vb, wa, wb, vNorm, vcol.data(), width);
+                    horizontalInvL(vcol.data(), P[INVL] + o, width, sigmaL);
+                }
+                // Pass 3: the filter itself.
+                const int32_t* bandIds = ids ? reinterpret_cast<const int32_t*>(P[ID]) : nullptr;
+                auto run = [&](auto id, auto nrm, auto v) {
+                    filterRange<decltype(id)::value, decltype(nrm)::value, decltype(v)::value>(
+                        y0, y1, width, height, s, P, base, bandIds, outColor, outVar);
+                };
+                using T = std::true_type;
+                using F = std::false_type;
+                const bool withVar = outVar != nullptr;
+                if (ids) {
+                    if (useNormal)
+                        withVar ? run(T{}, T{}, T{}) : run(T{}, T{}, F{});
+                    else
+                        withVar ? run(T{}, F{}, T{}) : run(T{}, F{}, F{});
+                } else {
+                    if (useNormal)
+                        withVar ? run(F{}, T{}, T{}) : run(F{}, T{}, F{});
+                    else
+                        withVar ? run(F{}, F{}, T{}) : run(F{}, F{}, F{});
+                }
+            }
+        },
+        1);
 }

@@ -1,25 +1,29 @@
 #pragma once
-// Per-execute scratch planes shared by every A-Trous instance of the process. Five instances
-// each owning 12 full-resolution planes would hold ~500 MB at 1080p; the planes are only needed
-// while one instance executes, so instances take turns on one set (a mutex serialises them if an
-// executor ever runs passes concurrently). Not temporal state: contents die with the execute.
+// Scratch planes shared by every A-Trous instance of the process: a pool of plane sets, one per
+// band being filtered at a time (so at most one per thread), reused across bands, instances and
+// frames. Five instances each owning full-resolution scratch would hold ~500 MB at 1080p; bands
+// only need a few dozen rows. Not temporal state: contents die with the band.
 #include <kestrel/Image.h>
 
-#include <mutex>
+#include <cstddef>
 #include <vector>
 
 class ScratchArena {
 public:
-    /// Locks the arena and returns `count` planes of at least `pixels` floats each.
+    /// A set of `count` planes of at least `pixels` floats each, owned until the lease ends.
     class Lease {
     public:
-        Lease(std::unique_lock<std::mutex> lock, std::vector<float*> planes)
-            : lock_(std::move(lock)), planes_(std::move(planes)) {}
+        Lease(size_t set, std::vector<float*> planes);
+        Lease(const Lease&) = delete;
+        Lease& operator=(const Lease&) = delete;
+        ~Lease();
         float* operator[](size_t i) const { return planes_[i]; }
 
     private:
-        std::unique_lock<std::mutex> lock_;
+        size_t set_;
         std::vector<float*> planes_;
     };
     static Lease acquire(size_t count, size_t pixels);
+    /// Bytes held by the pool (for tests and memory reports).
+    static size_t bytes();
 };

@@ -8,6 +8,7 @@
 
 #include "../SvgfTestImages.h"
 #include "ATrousPass.h"
+#include "ScratchArena.h"
 
 using namespace kestrel;
 using namespace svgftest;
@@ -314,6 +315,25 @@ void expectATrousEquivalent(int w, int h, int step, int seed, bool extreme, int 
 TEST(ATrous, VectorisedMatchesScalarReferenceOnRandomInputs) {
     // 157 columns: vector blocks, row-wise borders and ragged tails for every step.
     for (int step : {1, 2, 4, 8, 16}) expectATrousEquivalent(157, 41, step, step, false, 1);
+}
+
+TEST(ATrous, BandedFilteringMatchesReferenceAcrossBandSeams) {
+    // 150 rows at step 16 are filtered in three bands whose halos overlap.
+    expectATrousEquivalent(157, 150, 16, 77, false, 2);
+    expectATrousEquivalent(157, 150, 1, 78, false, 2);
+}
+
+TEST(ATrous, ScratchScalesWithTheBandNotTheFrame) {
+    const int w = 640, h = 480;
+    RandomGBuffer g = randomGBuffer(w, h, 5);
+    Scene s{clone(g.color), scalar(w, h, [](int, int) { return 0.1f; }), clone(g.depth),
+            clone(g.normal), clone(g.ids)};
+    runATrous(s, {{"step", int64_t(16)}}, 2);
+    // At most one set per thread, each 13 planes of (64 + 2 * 32 + 2) rows: under half of what
+    // one full-frame set (13 planes of 480 rows) would take.
+    const size_t fullFrameSet = 13 * size_t(w) * size_t(h) * sizeof(float);
+    EXPECT_GT(ScratchArena::bytes(), 0u);
+    EXPECT_LE(ScratchArena::bytes(), fullFrameSet / 2 + 2 * 13 * 64 * size_t(w));
 }
 
 TEST(ATrous, VectorisedMatchesScalarReferenceOnExtremeInputs) {
