@@ -1,11 +1,10 @@
 #include "ATrousPass.h"
 
 #include <kestrel/PixelMath.h>
+#include <kestrel/Scratch.h>
 #include <kestrel/SimdMath.h>
 
 #include <vector>
-
-#include "ScratchArena.h"
 
 using namespace kestrel;
 
@@ -390,7 +389,7 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
     ctx.parallel->forRange(
         0, bands,
         [&](int i0, int i1) {
-            auto lease = ScratchArena::acquire(kPlaneCount, bandPixels);
+            auto lease = ScratchPool::acquire(kPlaneCount, bandPixels);
             float* P[kPlaneCount];
             for (int k = 0; k < kPlaneCount; ++k) P[k] = lease[size_t(k)];
             std::vector<float> vcol(static_cast<size_t>(width));

@@ -1,6 +1,7 @@
 #include "VarianceEstimationPass.h"
 
 #include <kestrel/PixelMath.h>
+#include <kestrel/Scratch.h>
 #include <kestrel/SimdMath.h>
 
 using namespace kestrel;
@@ -108,76 +109,100 @@ void estimatePixel(const Inputs& in, int x, int y, float hl, float* c3, float* v
     *v = std::max(0.f, m2 - m1 * m1) * (4.f / std::max(hl, 1.f));
 }
 
+/// Sanitised copies of one band's rows (and the 3 rows its taps reach above and below):
+/// the 7x7 taps then load plain values instead of sanitising each of 49 reads.
+enum Plane { R, G, B, L, Z, NX, NY, NZ, M1, M2, kPlaneCount };
+
+void prepareRow(const Inputs& in, int y, float* const* P, size_t o) {
+    const int w = in.w;
+    for (int c = 0; c < 3; ++c) {
+        const float* src = in.color->row(c, y);
+        float* dst = P[R + c] + o;
+        for (int x = 0; x < w; ++x) dst[x] = px::sanitize(src[x]);
+        const float* n = in.normal->row(c, y);
+        float* nd = P[NX + c] + o;
+        for (int x = 0; x < w; ++x) nd[x] = px::sanitizeNormal(n[x]);
+    }
+    const float* z = in.depth->row(0, y);
+    const float* m1 = in.moments->row(0, y);
+    const float* m2 = in.moments->row(1, y);
+    float *pz = P[Z] + o, *pm1 = P[M1] + o, *pm2 = P[M2] + o, *pl = P[L] + o;
+    const float *r = P[R] + o, *g = P[G] + o, *b = P[B] + o;
+    for (int x = 0; x < w; ++x) pz[x] = px::sanitizeDepth(z[x]);
+    for (int x = 0; x < w; ++x) pm1[x] = px::sanitize(m1[x]);
+    for (int x = 0; x < w; ++x) pm2[x] = px::sanitizePositive(m2[x], 1e32f);
+    for (int x = 0; x < w; ++x) pl[x] = px::luminance(r[x], g[x], b[x]);
+}
+
 /// The same estimate for the lanes of one vector at (x0.., y), all taps inside the row range
-/// [x0 - 3, x0 + lanes + 3). Lanes outside `need` keep the pass-through values already stored.
-void estimateBlock(const Inputs& in, int x0, int y, VF hl, MF need, float* oc[3], float* ov) {
+/// [x0 - 3, x0 + lanes + 3), from the band's prepared planes (row y at (y - base) * width).
+/// Lanes outside `need` keep the pass-through values already stored.
+void estimateBlock(const Inputs& in, float* const* P, int base, int x0, int y, VF hl, MF need,
+                   float* oc[3], float* ov) {
     const DF d;
     const DI di;
     const int w = in.w, h = in.h;
     const size_t stride = size_t(w);
-    auto at = [&](const ImageView* im, int c, int dx, int yq) { return im->row(c, yq) + x0 + dx; };
-    auto colq = [&](int c, int dx, int yq) {
-        return simd::sanitize(hn::LoadU(d, at(in.color, c, dx, yq)));
-    };
-    auto zq = [&](int dx, int yq) {
-        return simd::sanitizeDepth(hn::LoadU(d, at(in.depth, 0, dx, yq)));
-    };
-    auto nq = [&](int c, int dx, int yq) {
-        return simd::sanitizeNormal(hn::LoadU(d, at(in.normal, c, dx, yq)));
+    auto ld = [&](int plane, int dx, int yq) {
+        return hn::LoadU(d, P[plane] + size_t(yq - base) * stride + size_t(x0 + dx));
     };
     const bool u = y > 0, dn = y + 1 < h;
-    const VF zp = zq(0, y);
-    const VF lp = simd::luminance(colq(0, 0, y), colq(1, 0, y), colq(2, 0, y));
-    const VF gx = simd::minAbsDiff(zq(-1, y), zp, zq(1, y), true, true);
-    const VF gy = simd::minAbsDiff(u ? zq(0, y - 1) : zp, zp, dn ? zq(0, y + 1) : zp, u, dn);
-    const VF npx = nq(0, 0, y), npy = nq(1, 0, y), npz = nq(2, 0, y);
+    const VF zp = ld(Z, 0, y), lp = ld(L, 0, y);
+    const VF gx = simd::minAbsDiff(ld(Z, -1, y), zp, ld(Z, 1, y), true, true);
+    const VF gy = simd::minAbsDiff(u ? ld(Z, 0, y - 1) : zp, zp, dn ? ld(Z, 0, y + 1) : zp, u, dn);
+    const VF npx = ld(NX, 0, y), npy = ld(NY, 0, y), npz = ld(NZ, 0, y);
     const VI idp = in.ids ? hn::LoadU(di, in.ids + size_t(y) * stride + size_t(x0)) : hn::Zero(di);
     const VF sigmaZ = hn::Set(d, in.sigmaZ), sigmaN = hn::Set(d, in.sigmaN);
     const VF invSigmaL = hn::Set(d, in.invSigmaL), negLog2e = hn::Set(d, -px::kLog2e);
     const VF epsZ = hn::MulAdd(hn::Set(d, 1e-5f), zp, hn::Set(d, 1e-8f));
-    const VF minDot = hn::Set(d, 1e-30f), one = hn::Set(d, 1.f);
-    const MF allLanes = hn::FirstN(d, hn::Lanes(d));
-    VF sw = hn::Zero(d), sr = sw, sg = sw, sb = sw, m1 = sw, m2 = sw;
+    const VF minDot = hn::Set(d, 1e-30f), one = hn::Set(d, 1.f), zero = hn::Zero(d);
+    const int intPower = simd::integerExponent(in.sigmaN);
+    VF sw = zero, sr = zero, sg = zero, sb = zero, m1 = zero, m2 = zero;
     for (int j = -kRadius; j <= kRadius; ++j) {
         const int yq = y + j;
         if (yq < 0 || yq >= h) continue;
         const VF gyj = hn::Mul(gy, hn::Set(d, float(j)));
         for (int i = -kRadius; i <= kRadius; ++i) {
-            const VF r = colq(0, i, yq), g = colq(1, i, yq), b = colq(2, i, yq);
             VF wt = one;
             if (i != 0 || j != 0) {
+                // Same edge-stopping functions as A-Trous (SVGF eq. 3-4), luminance on the raw
+                // difference (no variance yet: that is what we estimate).
                 const VF denom =
                     hn::MulAdd(sigmaZ, hn::Abs(hn::MulAdd(gx, hn::Set(d, float(i)), gyj)), epsZ);
-                const VF ez = hn::Div(hn::Abs(hn::Sub(zp, zq(i, yq))), denom);
-                const VF el = hn::Mul(hn::Abs(hn::Sub(lp, simd::luminance(r, g, b))), invSigmaL);
+                const VF ez = hn::Div(hn::Abs(hn::Sub(zp, ld(Z, i, yq))), denom);
+                const VF el = hn::Mul(hn::Abs(hn::Sub(lp, ld(L, i, yq))), invSigmaL);
                 VF e = hn::Mul(hn::Add(ez, el), negLog2e);
-                MF keep = allLanes;
+                VF wn = one;
+                auto keep = hn::Eq(one, one);
                 if (in.sigmaN > 0.f) {
                     const VF dot =
-                        hn::MulAdd(npz, nq(2, i, yq),
-                                   hn::MulAdd(npy, nq(1, i, yq), hn::Mul(npx, nq(0, i, yq))));
-                    keep = hn::Gt(dot, hn::Zero(d));
-                    e = hn::MulAdd(sigmaN, simd::fastLog2(hn::Min(hn::Max(dot, minDot), one)), e);
+                        hn::MulAdd(npz, ld(NZ, i, yq),
+                                   hn::MulAdd(npy, ld(NY, i, yq), hn::Mul(npx, ld(NX, i, yq))));
+                    keep = hn::Gt(dot, zero);
+                    if (intPower > 0)  // a whole exponent (the default 128): products only
+                        wn = simd::powInt(hn::Min(hn::Max(dot, minDot), one), intPower);
+                    else
+                        e = hn::MulAdd(sigmaN, simd::fastLog2(hn::Min(hn::Max(dot, minDot), one)),
+                                       e);
                 }
-                wt = simd::fastExp2(e);
                 if (in.ids) {
                     const VI idq = hn::LoadU(di, in.ids + size_t(yq) * stride + size_t(x0 + i));
                     keep = hn::And(keep, hn::RebindMask(d, hn::Eq(idq, idp)));
                 }
-                wt = hn::IfThenElseZero(keep, wt);
+                wt = hn::IfThenElseZero(keep, hn::Mul(wn, simd::fastExp2(e)));
             }
             sw = hn::Add(sw, wt);
-            sr = hn::MulAdd(wt, r, sr);
-            sg = hn::MulAdd(wt, g, sg);
-            sb = hn::MulAdd(wt, b, sb);
-            m1 = hn::MulAdd(wt, simd::sanitize(hn::LoadU(d, at(in.moments, 0, i, yq))), m1);
-            m2 = hn::MulAdd(
-                wt, simd::sanitizePositive(hn::LoadU(d, at(in.moments, 1, i, yq)), 1e32f), m2);
+            sr = hn::MulAdd(wt, ld(R, i, yq), sr);
+            sg = hn::MulAdd(wt, ld(G, i, yq), sg);
+            sb = hn::MulAdd(wt, ld(B, i, yq), sb);
+            m1 = hn::MulAdd(wt, ld(M1, i, yq), m1);
+            m2 = hn::MulAdd(wt, ld(M2, i, yq), m2);
         }
     }
     const VF inv = hn::Div(one, sw);  // sw >= 1 (centre)
     const VF mean = hn::Mul(m1, inv);
-    const VF var = hn::Max(hn::Zero(d), hn::NegMulAdd(mean, mean, hn::Mul(m2, inv)));
+    const VF var = hn::Max(zero, hn::NegMulAdd(mean, mean, hn::Mul(m2, inv)));
+    // Boost: few samples underestimate the variance (Falcor: 4 / historyLength).
     const VF boost = hn::Div(hn::Set(d, 4.f), hn::Max(hl, one));
     const VF acc[3] = {sr, sg, sb};
     for (int c = 0; c < 3; ++c) {
@@ -212,40 +237,67 @@ void VarianceEstimationPass::execute(FrameContext& ctx, PassIO& io) {
     const int w = in.w;
     const float minHist = minHist_;
 
-    ctx.parallelRows(in.h, [&](int y0, int y1) {
-        for (int y = y0; y < y1; ++y) {
-            float* oc[3] = {outC.row(0, y), outC.row(1, y), outC.row(2, y)};
-            float* ov = outV ? outV->row(0, y) : nullptr;
-            const float* hrow = in.hist->row(0, y);
-            // Everywhere first: the temporal estimate passes through (sanitised).
-            for (int c = 0; c < 3; ++c) {
-                const float* src = in.color->row(c, y);
-                for (int x = 0; x < w; ++x) oc[c][x] = px::sanitize(src[x]);
+    // Bands of rows, each with private scratch for its prepared rows (ScratchPool): prepared
+    // only if some pixel of the band has a short history, which in steady state is a minority.
+    constexpr int kBand = 32;
+    const int bands = (in.h + kBand - 1) / kBand;
+    const size_t bandPixels = size_t(std::min(in.h, kBand + 2 * kRadius)) * size_t(w);
+    ctx.parallel->forRange(
+        0, bands,
+        [&](int i0, int i1) {
+            for (int i = i0; i < i1; ++i) {
+                const int y0 = i * kBand, y1 = std::min(in.h, y0 + kBand);
+                bool anyShort = false;
+                for (int y = y0; y < y1; ++y) {
+                    float* oc[3] = {outC.row(0, y), outC.row(1, y), outC.row(2, y)};
+                    const float* hrow = in.hist->row(0, y);
+                    // Everywhere first: the temporal estimate passes through (sanitised).
+                    for (int c = 0; c < 3; ++c) {
+                        const float* src = in.color->row(c, y);
+                        for (int x = 0; x < w; ++x) oc[c][x] = px::sanitize(src[x]);
+                    }
+                    if (outV) {
+                        const float* src = in.var->row(0, y);
+                        float* ov = outV->row(0, y);
+                        for (int x = 0; x < w; ++x) ov[x] = px::sanitizePositive(src[x], 1e32f);
+                    }
+                    bool rowShort = false;
+                    for (int x = 0; x < w; ++x)
+                        rowShort |= !(px::sanitizePositive(hrow[x], 1e6f) >= minHist);
+                    anyShort |= rowShort;
+                }
+                if (!anyShort) continue;
+                // Then the spatial estimate where the history is short: whole vectors where all
+                // taps are inside the row, single pixels at the borders. Which pixels take which
+                // path depends only on the width, never on the thread count or the banding.
+                const int base = std::max(0, y0 - kRadius), p1 = std::min(in.h, y1 + kRadius);
+                auto lease = ScratchPool::acquire(kPlaneCount, bandPixels);
+                float* P[kPlaneCount];
+                for (int k = 0; k < kPlaneCount; ++k) P[k] = lease[size_t(k)];
+                for (int y = base; y < p1; ++y) prepareRow(in, y, P, size_t(y - base) * size_t(w));
+                for (int y = y0; y < y1; ++y) {
+                    float* oc[3] = {outC.row(0, y), outC.row(1, y), outC.row(2, y)};
+                    float* ov = outV ? outV->row(0, y) : nullptr;
+                    const float* hrow = in.hist->row(0, y);
+                    auto scalarAt = [&](int x) {
+                        const float hl = px::sanitizePositive(hrow[x], 1e6f);
+                        if (hl >= minHist) return;
+                        float c3[3], v;
+                        estimatePixel(in, x, y, hl, c3, &v);
+                        for (int c = 0; c < 3; ++c) oc[c][x] = c3[c];
+                        if (ov) ov[x] = v;
+                    };
+                    int x = 0;
+                    for (; x < std::min(kRadius, w); ++x) scalarAt(x);
+                    for (; x + n + kRadius <= w; x += n) {
+                        const VF hl = simd::sanitizePositive(hn::LoadU(d, hrow + x), 1e6f);
+                        const MF need = hn::Lt(hl, hn::Set(d, minHist));
+                        if (hn::AllFalse(d, need)) continue;
+                        estimateBlock(in, P, base, x, y, hl, need, oc, ov);
+                    }
+                    for (; x < w; ++x) scalarAt(x);
+                }
             }
-            if (ov) {
-                const float* src = in.var->row(0, y);
-                for (int x = 0; x < w; ++x) ov[x] = px::sanitizePositive(src[x], 1e32f);
-            }
-            // Then the spatial estimate where the history is short: whole vectors where all
-            // taps are inside the row, single pixels at the borders. Which pixels take which
-            // path depends only on the width, never on the thread count.
-            auto scalarAt = [&](int x) {
-                const float hl = px::sanitizePositive(hrow[x], 1e6f);
-                if (hl >= minHist) return;
-                float c3[3], v;
-                estimatePixel(in, x, y, hl, c3, &v);
-                for (int c = 0; c < 3; ++c) oc[c][x] = c3[c];
-                if (ov) ov[x] = v;
-            };
-            int x = 0;
-            for (; x < std::min(kRadius, w); ++x) scalarAt(x);
-            for (; x + n + kRadius <= w; x += n) {
-                const VF hl = simd::sanitizePositive(hn::LoadU(d, hrow + x), 1e6f);
-                const MF need = hn::Lt(hl, hn::Set(d, minHist));
-                if (hn::AllFalse(d, need)) continue;
-                estimateBlock(in, x, y, hl, need, oc, ov);
-            }
-            for (; x < w; ++x) scalarAt(x);
-        }
-    });
+        },
+        1);
 }

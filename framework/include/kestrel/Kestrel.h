@@ -12,3 +12,4 @@
 #include "kestrel/Pass.h"
 #include "kestrel/Plugin.h"
 #include "kestrel/Registry.h"
+#include "kestrel/Scratch.h"

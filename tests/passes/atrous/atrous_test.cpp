@@ -1,14 +1,12 @@
 #include <gtest/gtest.h>
 #include <kestrel/PixelMath.h>
+#include <kestrel/Scratch.h>
 
-#include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <ctime>
 
 #include "../SvgfTestImages.h"
 #include "ATrousPass.h"
-#include "ScratchArena.h"
 
 using namespace kestrel;
 using namespace svgftest;
@@ -252,35 +250,6 @@ TEST(ATrous, StepLargerThanImageIsIdentity) {
 }
 
 // Timing at 1080p (run with --gtest_also_run_disabled_tests; not part of CI).
-TEST(ATrous, DISABLED_Bench1080p) {
-    const int w = 1920, h = 1080;
-    Scene s{grey(w, h, [](int x, int y) { return hash01(x, y); }),
-            scalar(w, h, [](int x, int y) { return 0.1f * hash01(x, y, 1); }),
-            scalar(w, h, [](int x, int y) { return 2.f + 0.001f * float(x + y); }),
-            normals(w, h, 0, 0.6f, 0.8f), ids(w, h, [](int x, int) { return x / 300; })};
-    for (int threads : {1, 2}) {
-        auto hr = PassHarness::make<ATrousPass>({w, h}, {}, threads);
-        hr.bind("color", s.color);
-        hr.bind("variance", s.var);
-        hr.bind("depth", s.depth);
-        hr.bind("normal", s.normal);
-        hr.bind("objectId", s.id);
-        hr.run();  // warm-up (allocates)
-        // Process CPU time as well as wall time: the shared machine's load distorts wall time.
-        double best = 1e9, bestCpu = 1e9;
-        for (int rep = 0; rep < 3; ++rep) {
-            auto t0 = std::chrono::steady_clock::now();
-            std::clock_t c0 = std::clock();
-            hr.run();
-            bestCpu = std::min(bestCpu, 1e3 * double(std::clock() - c0) / CLOCKS_PER_SEC);
-            best = std::min(best, std::chrono::duration<double, std::milli>(
-                                      std::chrono::steady_clock::now() - t0)
-                                      .count());
-        }
-        std::printf("ATrous 1080p, %d thread(s): %.1f ms wall, %.1f ms CPU per iteration\n",
-                    threads, best, bestCpu);
-    }
-}
 
 // --- Equivalence of the vectorised pass with the plain scalar reference (ATrousReference.h,
 // libm exp/pow). The pass uses px::fastExp2/fastLog2 (stated bounds in PixelMath.h) and fused
@@ -332,8 +301,8 @@ TEST(ATrous, ScratchScalesWithTheBandNotTheFrame) {
     // At most one set per thread, each 13 planes of (64 + 2 * 32 + 2) rows: under half of what
     // one full-frame set (13 planes of 480 rows) would take.
     const size_t fullFrameSet = 13 * size_t(w) * size_t(h) * sizeof(float);
-    EXPECT_GT(ScratchArena::bytes(), 0u);
-    EXPECT_LE(ScratchArena::bytes(), fullFrameSet / 2 + 2 * 13 * 64 * size_t(w));
+    EXPECT_GT(ScratchPool::bytes(), 0u);
+    EXPECT_LE(ScratchPool::bytes(), fullFrameSet / 2 + 2 * 13 * 64 * size_t(w));
 }
 
 TEST(ATrous, VectorisedMatchesScalarReferenceOnExtremeInputs) {

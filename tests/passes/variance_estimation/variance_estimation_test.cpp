@@ -170,6 +170,8 @@ void expectEquivalent(const EqCase& e, int threads, double tol) {
 TEST(VarianceEstimation, VectorisedMatchesScalarReferenceOnRandomInputs) {
     // 77 columns: vector blocks, scalar borders and a ragged tail for 4-, 8- and 16-lane targets.
     expectEquivalent(equivalenceCase(77, 29, 1, false), 1, 1e-4);
+    // 100 rows: four bands of 32 rows (prepared separately, with overlapping halos).
+    expectEquivalent(equivalenceCase(77, 100, 4, false), 2, 1e-4);
 }
 
 TEST(VarianceEstimation, VectorisedMatchesScalarReferenceOnExtremeInputs) {

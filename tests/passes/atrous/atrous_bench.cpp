@@ -1,0 +1,56 @@
+// One A-Trous iteration at 1920x1080 on a random G-buffer (objects, depth steps, noisy
+// radiance), for steps 1 and 16 and 1 or 2 threads. Reports megapixels and taps per second.
+// Built as `atrous_bench`, not registered with ctest: scripts/bench-kernels.sh runs it.
+#include <benchmark/benchmark.h>
+
+#include "../EquivalenceImages.h"
+#include "ATrousPass.h"
+
+namespace {
+
+using namespace kestrel;
+using namespace svgftest;
+using kestrel::testing::PassHarness;
+
+constexpr int kW = 1920, kH = 1080;
+
+struct Inputs {
+    RandomGBuffer g = randomGBuffer(kW, kH, 1);
+    Image var = scalar(kW, kH, [](int x, int y) { return 0.01f + 0.1f * hash01(x, y, 9); });
+};
+const Inputs& inputs() {
+    static const Inputs in;
+    return in;
+}
+
+// state.range(0): step; state.range(1): threads.
+void BM_ATrous(benchmark::State& state) {
+    const Inputs& in = inputs();
+    auto h = PassHarness::make<ATrousPass>({kW, kH}, {{"step", int64_t(state.range(0))}},
+                                           int(state.range(1)));
+    h.bind("color", in.g.color);
+    h.bind("variance", in.var);
+    h.bind("depth", in.g.depth);
+    h.bind("normal", in.g.normal);
+    h.bind("objectId", in.g.ids);
+    h.run();  // allocate outputs and scratch
+    for (auto _ : state) {
+        h.run();
+        benchmark::DoNotOptimize(h.out("color").channel(0)[0]);
+    }
+    const double px = double(kW) * double(kH);
+    state.counters["MP/s"] =
+        benchmark::Counter(px * 1e-6 * double(state.iterations()), benchmark::Counter::kIsRate);
+    state.counters["Gtaps/s"] =
+        benchmark::Counter(px * 25e-9 * double(state.iterations()), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_ATrous)
+    ->ArgsProduct({{1, 16}, {1, 2}})
+    ->ArgNames({"step", "threads"})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->MinTime(1.0);
+
+}  // namespace
+
+BENCHMARK_MAIN();
