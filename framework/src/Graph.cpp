@@ -1,5 +1,7 @@
 #include "kestrel/Graph.h"
 
+#include <fnmatch.h>
+
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -15,8 +17,10 @@ namespace {
 std::pair<size_t, size_t> lineColumn(const std::string& text, size_t offset) {
     size_t line = 1, col = 1;
     for (size_t i = 0; i < offset && i < text.size(); ++i) {
-        if (text[i] == '\n') ++line, col = 1;
-        else ++col;
+        if (text[i] == '\n')
+            ++line, col = 1;
+        else
+            ++col;
     }
     return {line, col};
 }
@@ -36,7 +40,8 @@ void checkKeys(const json& obj, const std::set<std::string>& allowed, const std:
         if (!allowed.count(k)) {
             std::string list;
             for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-            diags.push_back({path + "." + k, "unknown key '" + k + "' (expected one of: " + list + ")"});
+            diags.push_back(
+                {path + "." + k, "unknown key '" + k + "' (expected one of: " + list + ")"});
         }
 }
 
@@ -54,8 +59,9 @@ GraphDesc parseGraph(const std::string& text, const std::filesystem::path& sourc
         // syntax error while parsing value - ..." — keep the part after "syntax error".
         auto pos = msg.find("syntax error");
         std::string detail = pos == std::string::npos ? msg : msg.substr(pos);
-        throw GraphError(std::vector<Diagnostic>{{"", where + ":" + std::to_string(line) + ":" + std::to_string(col) +
-                                   ": JSON " + detail}});
+        throw GraphError(
+            std::vector<Diagnostic>{{"", where + ":" + std::to_string(line) + ":" +
+                                             std::to_string(col) + ": JSON " + detail}});
     } catch (const json::exception& e) {
         // Other parser errors (e.g. out_of_range.406 "number overflow parsing '1e400'") must be
         // a GraphError too, not escape to the caller (found by fuzz/graph_fuzzer seed errors.json).
@@ -64,20 +70,24 @@ GraphDesc parseGraph(const std::string& text, const std::filesystem::path& sourc
     GraphDesc g;
     g.sourcePath = source;
     std::vector<Diagnostic> diags;
-    if (!doc.is_object()) throw GraphError(std::vector<Diagnostic>{{"", "expected a JSON object at the top level"}});
+    if (!doc.is_object())
+        throw GraphError(std::vector<Diagnostic>{{"", "expected a JSON object at the top level"}});
     checkKeys(doc, {"kestrel", "name", "comment", "passes", "edges", "outputs"}, "", diags);
     for (auto& d : diags) d.path = d.path.substr(1);
 
     if (!doc.contains("kestrel"))
         diags.push_back({"kestrel", "missing graph format version (expected \"kestrel\": " +
                                         std::to_string(kGraphFormatVersion) + ")"});
-    else if (!doc["kestrel"].is_number_integer() || doc["kestrel"].get<int>() != kGraphFormatVersion)
+    else if (!doc["kestrel"].is_number_integer() ||
+             doc["kestrel"].get<int>() != kGraphFormatVersion)
         diags.push_back({"kestrel", "unsupported graph format version " + doc["kestrel"].dump() +
                                         " (this kestrel reads version " +
                                         std::to_string(kGraphFormatVersion) + ")"});
     if (doc.contains("name")) {
-        if (doc["name"].is_string()) g.name = doc["name"];
-        else diags.push_back({"name", "expected string, got " + doc["name"].dump()});
+        if (doc["name"].is_string())
+            g.name = doc["name"];
+        else
+            diags.push_back({"name", "expected string, got " + doc["name"].dump()});
     }
     if (g.name.empty()) g.name = source.empty() ? "graph" : source.stem().string();
     if (doc.contains("comment") && doc["comment"].is_string()) g.comment = doc["comment"];
@@ -96,18 +106,23 @@ GraphDesc parseGraph(const std::string& text, const std::filesystem::path& sourc
             }
             checkKeys(jp, {"name", "type", "params", "comment"}, p, diags);
             PassNode n;
-            if (!jp.contains("name") || !jp["name"].is_string() || jp["name"].get<std::string>().empty())
+            if (!jp.contains("name") || !jp["name"].is_string() ||
+                jp["name"].get<std::string>().empty())
                 diags.push_back({p + ".name", "expected a non-empty string"});
-            else n.name = jp["name"];
+            else
+                n.name = jp["name"];
             if (n.name.find('.') != std::string::npos)
                 diags.push_back({p + ".name", "pass name '" + n.name + "' must not contain '.'"});
             if (!jp.contains("type") || !jp["type"].is_string())
                 diags.push_back({p + ".type", "expected a pass type name (string)"});
-            else n.type = jp["type"];
+            else
+                n.type = jp["type"];
             if (jp.contains("params")) {
                 if (!jp["params"].is_object())
-                    diags.push_back({p + ".params", "expected an object, got " + jp["params"].dump()});
-                else n.paramsJson = jp["params"].dump();
+                    diags.push_back(
+                        {p + ".params", "expected an object, got " + jp["params"].dump()});
+                else
+                    n.paramsJson = jp["params"].dump();
             }
             if (jp.contains("comment") && jp["comment"].is_string()) n.comment = jp["comment"];
             if (!n.name.empty() && !names.insert(n.name).second)
@@ -117,7 +132,8 @@ GraphDesc parseGraph(const std::string& text, const std::filesystem::path& sourc
     }
     if (doc.contains("edges")) {
         const auto& edges = doc["edges"];
-        if (!edges.is_array()) diags.push_back({"edges", "expected an array of edges"});
+        if (!edges.is_array())
+            diags.push_back({"edges", "expected an array of edges"});
         else
             for (size_t i = 0; i < edges.size(); ++i) {
                 std::string p = "edges[" + std::to_string(i) + "]";
@@ -133,29 +149,37 @@ GraphDesc parseGraph(const std::string& text, const std::filesystem::path& sourc
                     std::string pass, port;
                     if (!je.contains(key) || !je[key].is_string() ||
                         !splitPassPort(je[key].get<std::string>(), pass, port)) {
-                        diags.push_back({p + "." + key, std::string("expected \"pass.port\", got ") +
-                                                            (je.contains(key) ? je[key].dump() : "nothing")});
+                        diags.push_back(
+                            {p + "." + key, std::string("expected \"pass.port\", got ") +
+                                                (je.contains(key) ? je[key].dump() : "nothing")});
                         continue;
                     }
-                    if (std::string(key) == "from") e.fromPass = pass, e.fromPort = port;
-                    else e.toPass = pass, e.toPort = port;
+                    if (std::string(key) == "from")
+                        e.fromPass = pass, e.fromPort = port;
+                    else
+                        e.toPass = pass, e.toPort = port;
                 }
                 if (je.contains("history")) {
                     if (!je["history"].is_boolean())
-                        diags.push_back({p + ".history", "expected true or false, got " + je["history"].dump()});
-                    else e.history = je["history"];
+                        diags.push_back({p + ".history",
+                                         "expected true or false, got " + je["history"].dump()});
+                    else
+                        e.history = je["history"];
                 }
                 g.edges.push_back(std::move(e));
             }
     }
     if (doc.contains("outputs")) {
         const auto& outs = doc["outputs"];
-        if (!outs.is_array()) diags.push_back({"outputs", "expected an array of \"pass.port\" strings"});
+        if (!outs.is_array())
+            diags.push_back({"outputs", "expected an array of \"pass.port\" strings"});
         else
             for (size_t i = 0; i < outs.size(); ++i) {
                 if (!outs[i].is_string() || outs[i].get<std::string>().empty())
-                    diags.push_back({"outputs[" + std::to_string(i) + "]", "expected \"pass.port\" or \"pass\""});
-                else g.outputs.push_back(outs[i]);
+                    diags.push_back({"outputs[" + std::to_string(i) + "]",
+                                     "expected \"pass.port\" or \"pass\""});
+                else
+                    g.outputs.push_back(outs[i]);
             }
     }
     if (!diags.empty()) throw GraphError(std::move(diags));
@@ -173,7 +197,8 @@ GraphDesc loadGraphFile(const std::filesystem::path& path) {
 void applyOverride(GraphDesc& graph, const std::string& assignment) {
     auto eq = assignment.find('=');
     auto dot = assignment.find('.');
-    if (eq == std::string::npos || dot == std::string::npos || dot > eq || dot == 0 || dot + 1 == eq)
+    if (eq == std::string::npos || dot == std::string::npos || dot > eq || dot == 0 ||
+        dot + 1 == eq)
         throw Error("--set " + assignment + ": expected pass.param=value");
     std::string pass = assignment.substr(0, dot);
     std::string param = assignment.substr(dot + 1, eq - dot - 1);
@@ -184,16 +209,23 @@ void applyOverride(GraphDesc& graph, const std::string& assignment) {
     } catch (const json::parse_error&) {
         value = text;  // not JSON: a plain string
     }
+    // A pattern (*, ?, [..]) sets the parameter on every pass whose name matches: e.g.
+    // '*atrous*.exact=true' for all A-Trous iterations of every chain.
+    const bool pattern = pass.find_first_of("*?[") != std::string::npos;
+    bool found = false;
     for (auto& p : graph.passes)
-        if (p.name == pass) {
+        if (pattern ? fnmatch(pass.c_str(), p.name.c_str(), 0) == 0 : p.name == pass) {
             json params = json::parse(p.paramsJson);
             params[param] = value;
             p.paramsJson = params.dump();
-            return;
+            found = true;
+            if (!pattern) return;
         }
+    if (found) return;
     std::string known;
     for (const auto& p : graph.passes) known += (known.empty() ? "" : ", ") + p.name;
-    throw Error("--set " + assignment + ": no pass named '" + pass + "' (passes: " + known + ")");
+    throw Error("--set " + assignment + ": no pass " + (pattern ? "matches '" : "named '") + pass +
+                "' (passes: " + known + ")");
 }
 
 }  // namespace kestrel

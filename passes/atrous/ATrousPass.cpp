@@ -6,6 +6,8 @@
 
 #include <vector>
 
+#include "ATrousReference.h"
+
 using namespace kestrel;
 
 PassDesc ATrousPass::describe() {
@@ -26,7 +28,10 @@ PassDesc ATrousPass::describe() {
         .paramFloat("sigmaN", 128.0, 0.0, 1e4, "normal weight exponent on max(0, n_p . n_q)")
         .paramFloat("sigmaL", 4.0, 0.0, 1e6, "luminance weight: tolerance in standard deviations")
         .paramFloat("sigmaColor", 0.6, 1e-6, 1e6,
-                    "luminance tolerance (absolute) used when no variance is bound");
+                    "luminance tolerance (absolute) used when no variance is bound")
+        .paramBool("exact", false,
+                   "run the plain scalar path (libm exp/pow, no SIMD) to measure what the fast"
+                   " path's approximations cost in error; several times slower");
     return d;
 }
 
@@ -36,6 +41,7 @@ ATrousPass::ATrousPass(const ParamValues& p) {
     s_.sigmaN = p.getFloat("sigmaN");
     s_.sigmaL = p.getFloat("sigmaL");
     s_.sigmaColor = p.getFloat("sigmaColor");
+    exact_ = p.getBool("exact");
 }
 
 void ATrousPass::resolve(ResolveContext& rc) {
@@ -372,6 +378,14 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
     const int32_t* ids = io.hasInput("objectId") ? io.input("objectId").ints() : nullptr;
     const ImageView& outColor = io.output("color");
     const ImageView* outVar = hasVar && io.hasOutput("variance") ? &io.output("variance") : nullptr;
+    if (exact_) {
+        const ImageView* idView = ids ? &io.input("objectId") : nullptr;
+        const reference::ATrousInputs in{&color,  var,       &depth,    &normal,   idView,
+                                         s_.step, s_.sigmaZ, s_.sigmaN, s_.sigmaL, s_.sigmaColor};
+        ctx.parallelRows(height,
+                         [&](int y0, int y1) { reference::atrous(in, outColor, outVar, y0, y1); });
+        return;
+    }
 
     // The image is filtered in bands of rows, each with private scratch planes covering the
     // band and the rows its taps reach (2 step above and below, plus one for the 3x3 terms):

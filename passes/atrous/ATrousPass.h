@@ -17,4 +17,5 @@ public:
 
 private:
     Settings s_;
+    bool exact_ = false;
 };

@@ -4,6 +4,8 @@
 #include <kestrel/Scratch.h>
 #include <kestrel/SimdMath.h>
 
+#include "VarianceReference.h"
+
 using namespace kestrel;
 
 PassDesc VarianceEstimationPass::describe() {
@@ -25,7 +27,10 @@ PassDesc VarianceEstimationPass::describe() {
         .paramFloat("sigmaL", 10.0, 1e-6, 1e6,
                     "luminance weight: exp(-|l_p - l_q| / sigmaL), un-normalised (Falcor phiColor)")
         .paramFloat("minHistoryLength", 4.0, 0.0, 1e6,
-                    "history length below which the spatial estimate is used");
+                    "history length below which the spatial estimate is used")
+        .paramBool("exact", false,
+                   "run the plain scalar path (libm exp/pow, no SIMD) to measure what the fast"
+                   " path's approximations cost in error; several times slower");
     return d;
 }
 
@@ -33,7 +38,8 @@ VarianceEstimationPass::VarianceEstimationPass(const ParamValues& p)
     : sigmaZ_(p.getFloat("sigmaZ")),
       sigmaN_(p.getFloat("sigmaN")),
       sigmaL_(p.getFloat("sigmaL")),
-      minHist_(p.getFloat("minHistoryLength")) {}
+      minHist_(p.getFloat("minHistoryLength")),
+      exact_(p.getBool("exact")) {}
 
 namespace {
 
@@ -236,6 +242,23 @@ void VarianceEstimationPass::execute(FrameContext& ctx, PassIO& io) {
     const ImageView* outV = io.hasOutput("variance") ? &io.output("variance") : nullptr;
     const int w = in.w;
     const float minHist = minHist_;
+    if (exact_) {
+        const reference::VarianceInputs ref{
+            in.color,
+            in.moments,
+            in.hist,
+            in.var,
+            in.depth,
+            in.normal,
+            io.hasInput("objectId") ? &io.input("objectId") : nullptr,
+            sigmaZ_,
+            sigmaN_,
+            sigmaL_,
+            minHist_};
+        ctx.parallelRows(
+            in.h, [&](int y0, int y1) { reference::varianceEstimation(ref, outC, outV, y0, y1); });
+        return;
+    }
 
     // Bands of rows, each with private scratch for its prepared rows (ScratchPool): prepared
     // only if some pixel of the band has a short history, which in steady state is a minority.

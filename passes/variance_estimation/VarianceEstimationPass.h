@@ -13,4 +13,5 @@ public:
 
 private:
     float sigmaZ_, sigmaN_, sigmaL_, minHist_;
+    bool exact_;
 };

@@ -46,8 +46,9 @@ GraphDesc parseGraph(const std::string& jsonText, const std::filesystem::path& s
 /// Reads and parses a file; an unreadable file is an Error naming it.
 GraphDesc loadGraphFile(const std::filesystem::path& path);
 
-/// Applies `pass.param=value` overrides (value parsed as JSON, else taken as a string).
-/// Unknown pass names are an Error naming the override.
+/// Applies `pass.param=value` overrides (value parsed as JSON, else taken as a string). `pass`
+/// may be a shell pattern (`*atrous*`): every matching pass gets the value. A name or pattern
+/// matching no pass is an Error naming the override.
 void applyOverride(GraphDesc& graph, const std::string& assignment);
 
 }  // namespace kestrel

@@ -240,3 +240,27 @@ TEST(Validation, StructuralErrorsInTheDocumentAreGathered) {
 
 }  // namespace
 }  // namespace kestrel::enginetest
+
+namespace kestrel::enginetest {
+namespace {
+
+TEST(Overrides, PatternSetsEveryMatchingPassAndNothingElse) {
+    GraphDesc g;
+    g.passes = {{"diffuse_atrous0", "ATrous"}, {"diffuse_atrous1", "ATrous"}, {"taa", "TAA"}};
+    applyOverride(g, "*atrous*.exact=true");
+    EXPECT_EQ(g.passes[0].paramsJson, R"({"exact":true})");
+    EXPECT_EQ(g.passes[1].paramsJson, R"({"exact":true})");
+    EXPECT_EQ(g.passes[2].paramsJson, "{}");
+    applyOverride(g, "taa.alpha=0.2");
+    EXPECT_EQ(g.passes[2].paramsJson, R"({"alpha":0.2})");
+    try {
+        applyOverride(g, "*variance*.exact=true");
+        FAIL() << "a pattern matching nothing must be an error";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("no pass matches '*variance*'"), std::string::npos)
+            << e.what();
+    }
+}
+
+}  // namespace
+}  // namespace kestrel::enginetest

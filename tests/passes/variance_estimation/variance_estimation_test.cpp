@@ -151,8 +151,10 @@ void expectEquivalent(const EqCase& e, int threads, double tol) {
     h.bind("objectId", e.g.ids);
     h.run();
     Image refC(ext, Format::Float3), refV(ext, Format::Float);
-    VarianceInputs in{&e.g.color, &e.moments, &e.length, &e.var, &e.g.depth, &e.g.normal, &e.g.ids};
-    varianceReference(in, refC, refV);
+    reference::VarianceInputs in{&e.g.color.view(), &e.moments.view(), &e.length.view(),
+                                 &e.var.view(),     &e.g.depth.view(), &e.g.normal.view(),
+                                 &e.g.ids.view()};
+    reference::varianceEstimation(in, refC, &refV.view(), 0, ext.height);
     float maxM2 = 0;
     for (size_t i = 0; i < ext.pixels(); ++i)
         maxM2 = std::max(maxM2, px::sanitizePositive(e.moments.channel(1)[i], 1e32f));
@@ -195,4 +197,24 @@ TEST(VarianceEstimation, SameOutputForOneAndTwoThreads) {
     auto a = runWith(1), b = runWith(2);
     EXPECT_TRUE(identical(a.first, b.first));
     EXPECT_TRUE(identical(a.second, b.second));
+}
+
+TEST(VarianceEstimation, ExactParameterRunsThePlainPath) {
+    EqCase e = equivalenceCase(40, 20, 9, false);
+    auto h = PassHarness::make<VarianceEstimationPass>(e.g.color.extent(), {{"exact", true}}, 2);
+    h.bind("color", e.g.color);
+    h.bind("moments", e.moments);
+    h.bind("historyLength", e.length);
+    h.bind("variance", e.var);
+    h.bind("depth", e.g.depth);
+    h.bind("normal", e.g.normal);
+    h.bind("objectId", e.g.ids);
+    h.run();
+    Image refC(e.g.color.extent(), Format::Float3), refV(e.g.color.extent(), Format::Float);
+    reference::VarianceInputs in{&e.g.color.view(), &e.moments.view(), &e.length.view(),
+                                 &e.var.view(),     &e.g.depth.view(), &e.g.normal.view(),
+                                 &e.g.ids.view()};
+    reference::varianceEstimation(in, refC, &refV.view(), 0, 20);
+    EXPECT_TRUE(identical(h.out("color"), refC));
+    EXPECT_TRUE(identical(h.out("variance"), refV));
 }

@@ -1,22 +1,25 @@
 #pragma once
-// Plain scalar reference of one A-Trous iteration (SVGF eq. 1-5, section 4.4) with libm's exp
-// and pow, pixel by pixel, for the equivalence test of the vectorised pass.
+// The plain path of one A-Trous iteration (SVGF eq. 1-5, section 4.4): scalar, pixel by pixel,
+// libm's exp and pow, no precomputation. The equivalence tests hold the vectorised pass to it
+// (tests/passes/atrous), and the pass runs it when its `exact` parameter is set, so that
+// `kestrel bench` can put the fast path's error next to the plain path's.
+#include <kestrel/Image.h>
 #include <kestrel/PixelMath.h>
 
+#include <algorithm>
 #include <cmath>
 
-#include "../SvgfTestImages.h"
-
-namespace svgftest {
+namespace kestrel::reference {
 
 struct ATrousInputs {
-    const Image *color, *var, *depth, *normal, *ids;
+    const ImageView *color, *var, *depth, *normal, *ids;  ///< var and ids may be null
     int step = 1;
-    float sigmaZ = 1.f, sigmaN = 128.f, sigmaL = 4.f;
+    float sigmaZ = 1.f, sigmaN = 128.f, sigmaL = 4.f, sigmaColor = 0.6f;
 };
 
-inline void atrousReference(const ATrousInputs& in, Image& outColor, Image& outVar) {
-    namespace px = kestrel::px;
+/// Rows [y0, y1) of the output (outVar may be null).
+inline void atrous(const ATrousInputs& in, const ImageView& outColor, const ImageView* outVar,
+                   int y0, int y1) {
     const int w = in.color->width(), h = in.color->height();
     auto col = [&](int c, int x, int y) { return px::sanitize(in.color->at(c, x, y)); };
     auto lum = [&](int x, int y) {
@@ -24,9 +27,11 @@ inline void atrousReference(const ATrousInputs& in, Image& outColor, Image& outV
     };
     auto z = [&](int x, int y) { return px::sanitizeDepth(in.depth->at(0, x, y)); };
     auto nrm = [&](int c, int x, int y) { return px::sanitizeNormal(in.normal->at(c, x, y)); };
-    auto var = [&](int x, int y) { return px::sanitizePositive(in.var->at(0, x, y), 1e32f); };
+    auto var = [&](int x, int y) {
+        return in.var ? px::sanitizePositive(in.var->at(0, x, y), 1e32f) : 0.f;
+    };
     const float kh[5] = {1.f / 16, 1.f / 4, 3.f / 8, 1.f / 4, 1.f / 16};
-    for (int y = 0; y < h; ++y)
+    for (int y = y0; y < y1; ++y)
         for (int x = 0; x < w; ++x) {
             // 3x3 Gaussian of the variance, renormalised at the border (section 4.4).
             float gv = 0, gw = 0;
@@ -37,7 +42,8 @@ inline void atrousReference(const ATrousInputs& in, Image& outColor, Image& outV
                     gv += g * var(x + i, y + j);
                     gw += g;
                 }
-            const float sigmaLum = in.sigmaL * std::sqrt(gv / gw) + 1e-10f;
+            const float sigmaLum =
+                in.var ? in.sigmaL * std::sqrt(gv / gw) + 1e-10f : in.sigmaColor + 1e-10f;
             const bool l = x > 0, r = x + 1 < w, u = y > 0, d = y + 1 < h;
             const float zp = z(x, y), lp = lum(x, y);
             const float gx = px::minAbsDiff(l ? z(x - 1, y) : 0, zp, r ? z(x + 1, y) : 0, l, r);
@@ -67,8 +73,8 @@ inline void atrousReference(const ATrousInputs& in, Image& outColor, Image& outV
                     sv += wt * wt * var(xq, yq);
                 }
             for (int c = 0; c < 3; ++c) outColor.at(c, x, y) = sc[c] / sw;
-            outVar.at(0, x, y) = sv / (sw * sw);
+            if (outVar) outVar->at(0, x, y) = sv / (sw * sw);
         }
 }
 
-}  // namespace svgftest
+}  // namespace kestrel::reference

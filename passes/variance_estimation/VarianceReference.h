@@ -1,21 +1,23 @@
 #pragma once
-// Plain scalar reference of VarianceEstimation (SVGF section 4.2), pixel by pixel with libm's
-// exp2/log2, for the equivalence test of the vectorised pass. Kept deliberately simple.
+// The plain path of VarianceEstimation (SVGF section 4.2): scalar, pixel by pixel, libm's exp
+// and pow. The equivalence tests hold the vectorised pass to it, and the pass runs it when its
+// `exact` parameter is set (for the fast-versus-plain rows of `kestrel bench`).
+#include <kestrel/Image.h>
 #include <kestrel/PixelMath.h>
 
+#include <algorithm>
 #include <cmath>
 
-#include "../SvgfTestImages.h"
-
-namespace svgftest {
+namespace kestrel::reference {
 
 struct VarianceInputs {
-    const Image *color, *moments, *length, *var, *depth, *normal, *ids;
+    const ImageView *color, *moments, *length, *var, *depth, *normal, *ids;  ///< ids may be null
     float sigmaZ = 1.f, sigmaN = 128.f, sigmaL = 10.f, minHistory = 4.f;
 };
 
-inline void varianceReference(const VarianceInputs& in, Image& outColor, Image& outVar) {
-    namespace px = kestrel::px;
+/// Rows [y0, y1) of the output (outVar may be null).
+inline void varianceEstimation(const VarianceInputs& in, const ImageView& outColor,
+                               const ImageView* outVar, int y0, int y1) {
     const int w = in.color->width(), h = in.color->height();
     auto col = [&](int c, int x, int y) { return px::sanitize(in.color->at(c, x, y)); };
     auto lum = [&](int x, int y) {
@@ -23,12 +25,12 @@ inline void varianceReference(const VarianceInputs& in, Image& outColor, Image& 
     };
     auto z = [&](int x, int y) { return px::sanitizeDepth(in.depth->at(0, x, y)); };
     auto nrm = [&](int c, int x, int y) { return px::sanitizeNormal(in.normal->at(c, x, y)); };
-    for (int y = 0; y < h; ++y)
+    for (int y = y0; y < y1; ++y)
         for (int x = 0; x < w; ++x) {
             const float hl = px::sanitizePositive(in.length->at(0, x, y), 1e6f);
             if (hl >= in.minHistory) {
                 for (int c = 0; c < 3; ++c) outColor.at(c, x, y) = col(c, x, y);
-                outVar.at(0, x, y) = px::sanitizePositive(in.var->at(0, x, y), 1e32f);
+                if (outVar) outVar->at(0, x, y) = px::sanitizePositive(in.var->at(0, x, y), 1e32f);
                 continue;
             }
             const bool l = x > 0, r = x + 1 < w, u = y > 0, d = y + 1 < h;
@@ -67,8 +69,8 @@ inline void varianceReference(const VarianceInputs& in, Image& outColor, Image& 
             for (int c = 0; c < 3; ++c) outColor.at(c, x, y) = sc[c] / sw;
             m1 /= sw;
             m2 /= sw;
-            outVar.at(0, x, y) = std::max(0.f, m2 - m1 * m1) * 4.f / std::max(hl, 1.f);
+            if (outVar) outVar->at(0, x, y) = std::max(0.f, m2 - m1 * m1) * 4.f / std::max(hl, 1.f);
         }
 }
 
-}  // namespace svgftest
+}  // namespace kestrel::reference
