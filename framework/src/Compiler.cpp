@@ -313,6 +313,13 @@ private:
             c_.node(n_).outAbsent[size_t(o)] = true;
             c_.node(n_).absentReason[size_t(o)] = std::move(reason);
         }
+        void ignoreInput(std::string_view input, std::string reason) override {
+            const int p = port(input, PortKind::Input);
+            auto& nd = c_.node(n_);
+            if (nd.inEdge[size_t(p)] < 0) return;
+            nd.inEdge[size_t(p)] = -1;
+            note("input '" + std::string(input) + "' not read: " + reason);
+        }
         void note(std::string message) override {
             c_.node(n_).notes.push_back(message);
             c_.g_->report.notes.push_back(c_.node(n_).name + ": " + message);

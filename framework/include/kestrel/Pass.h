@@ -3,7 +3,8 @@
 // so a JSON graph is validated completely before any pass runs. Three phases, three objects:
 //   declare  - static PassDesc describe();               (what the type offers)
 //   compile  - void resolve(ResolveContext&);             (adapt to what the scene provides)
-//   execute  - void execute(FrameContext&, PassIO&);      (per frame; resources come from the graph)
+//   execute  - void execute(FrameContext&, PassIO&);      (per frame; resources come from the
+//   graph)
 // A pass never allocates graph resources and keeps no temporal state in members: state that
 // must survive to the next frame flows through history edges.
 #include <memory>
@@ -71,6 +72,10 @@ public:
     virtual void forward(std::string_view output, std::string_view input) = 0;
     /// Declare that `output` will not be produced (e.g. the scene lacks the channel).
     virtual void setAbsent(std::string_view output, std::string reason) = 0;
+    /// Declare that a connected input will not be read for this scene (e.g. world positions
+    /// when motion vectors are given): the compiler disconnects it, so a producer feeding only
+    /// this input is left out and a source does not read the channel. The reason is logged.
+    virtual void ignoreInput(std::string_view /*input*/, std::string /*reason*/) {}
     /// A line for the run log: what the pass adapted and why.
     virtual void note(std::string message) = 0;
     /// Sequence facts a source needs at compile time.

@@ -190,6 +190,26 @@ public:
     }
 };
 
+/// out = first when bound (and then `second` is declared unused), else second.
+class PreferFirstPass : public Pass {
+public:
+    static PassDesc describe() {
+        return PassDesc("PreferFirst", "reads first when bound, else second")
+            .optionalInput("first", Format::Float, "preferred")
+            .optionalInput("second", Format::Float, "fallback")
+            .output("out", Format::Float, "first or second");
+    }
+    explicit PreferFirstPass(const ParamValues&) {}
+    void resolve(ResolveContext& rc) override {
+        if (rc.isBound("first")) rc.ignoreInput("second", "first is bound");
+    }
+    void execute(FrameContext&, PassIO& io) override {
+        const ImageView& src = io.hasInput("first") ? io.input("first") : io.input("second");
+        const ImageView& o = io.output("out");
+        for (size_t i = 0; i < o.pixels(); ++i) o.channel(0)[i] = src.channel(0)[i];
+    }
+};
+
 /// Identity for every scene: resolve() forwards out to in, so it must never execute.
 class ForwardPass : public Pass {
 public:
@@ -296,6 +316,7 @@ inline Registry testRegistry() {
     r.add<PreviousPass>();
     r.add<OptionalUserPass>();
     r.add<ForwardPass>();
+    r.add<PreferFirstPass>();
     r.add<MissingPass>();
     r.add<ExplodePass>();
     r.add<SinkPass>();

@@ -1,6 +1,7 @@
 // Pruning, absent inputs and forwarding: what the compiler leaves out, and why it says so.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <string>
 #include <vector>
 
@@ -41,6 +42,24 @@ TEST(Pruning, PassContributingToNoOutputIsNotExecuted) {
     EXPECT_FLOAT_EQ(runOnce(*g, "a.out"), 2.f);
     // The DOT export shows pruned passes greyed out with their reason.
     EXPECT_NE(g->toDot().find("pruned: contributes to no output"), std::string::npos);
+}
+
+TEST(Pruning, AnInputThePassDeclaresUnusedIsDisconnectedAndItsProducerLeftOut) {
+    Registry r = testRegistry();
+    // `dead` throws if executed: it feeds only the input PreferFirst ignores.
+    auto g = compileText(R"({"kestrel": 1, "passes": [{"name": "src", "type": "Const"},
+        {"name": "dead", "type": "Explode"}, {"name": "pick", "type": "PreferFirst"}],
+        "edges": [{"from": "src.out", "to": "dead.in"}, {"from": "src.out", "to": "pick.first"},
+                  {"from": "dead.out", "to": "pick.second"}],
+        "outputs": ["pick.out"]})",
+                         r);
+    EXPECT_EQ(g->executionOrder(), (Names{"src", "pick"}));
+    EXPECT_EQ(reasonOf(g->report().pruned, "dead"), "contributes to no output");
+    const auto& notes = g->report().notes;
+    EXPECT_NE(
+        std::find(notes.begin(), notes.end(), "pick: input 'second' not read: first is bound"),
+        notes.end());
+    EXPECT_FLOAT_EQ(runOnce(*g, "pick.out"), 1.f);
 }
 
 TEST(Pruning, SinkIsAlwaysLiveAndAPassMarkedWithoutPortToo) {
