@@ -34,8 +34,8 @@ bool exrTarget(const uint8_t* data, size_t size, const std::filesystem::path& sc
         out.write(reinterpret_cast<const char*>(data), std::streamsize(size));
     }
     try {
-        // A small pixel limit: a header claiming a huge window is refused before allocation
-        // (and keeps each run fast).
+        // A small pixel limit: a header claiming a huge window, or chunks whose buffers exceed
+        // 16 bytes x 2^16 = 1 MB, is refused before allocation (and keeps each run fast).
         auto h = testing::PassHarness::make<exr::ExrLoader>(
             {1, 1},
             {{"path", (scratchDir / "fuzz.####.exr").string()}, {"maxPixels", int64_t(1) << 16}});

@@ -1,7 +1,9 @@
 #pragma once
-// Opening an EXR file safely: the header is read and its windows are checked against a pixel
-// limit BEFORE OpenEXR allocates anything sized by them (a hostile or corrupt header can claim a
-// 100000 x 100000 data window), then the same stream is handed to Imf::InputFile.
+// Opening an EXR file safely: everything in the header that OpenEXR sizes an allocation by is
+// checked BEFORE OpenEXR allocates it -- attribute sizes against the bytes left in the file (a
+// 500-byte file can declare a 2 GB attribute), the windows against a pixel limit (or a 100000 x
+// 100000 data window), the chunk offset tables against the file size, the chunk buffers against
+// the pixel limit -- then the same stream is handed to Imf::InputFile.
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfIO.h>
 #include <OpenEXR/ImfInputFile.h>
@@ -22,7 +24,9 @@ struct Box {
 class ExrInput {
 public:
     /// Throws kestrel::Error with a reason (caller adds file and frame): missing, not an EXR,
-    /// unsupported (deep), corrupt header, window larger than maxPixels.
+    /// unsupported (deep), corrupt header (an attribute larger than the file or disagreeing with
+    /// its type, more chunks than the file can hold), window larger than maxPixels, a chunk
+    /// buffer over 16 bytes x maxPixels.
     ExrInput(const std::string& path, int64_t maxPixels);
     ~ExrInput();
 

@@ -78,7 +78,8 @@ PassDesc ExrLoader::describe() {
                   "override output channels: out=Layer[*Layer][+...],... e.g. "
                   "albedo=ViewLayer.DiffCol (empty expression: leave the output out)");
     d.paramInt("maxPixels", int64_t(1) << 27, 1, int64_t(1) << 40,
-               "largest data or display window accepted (pixels), checked before allocating");
+               "largest data or display window accepted (pixels), checked before allocating; "
+               "OpenEXR's per-chunk buffers are held to 16 bytes per maxPixels pixel");
     return d;
 }
 

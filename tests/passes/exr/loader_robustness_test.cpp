@@ -1,5 +1,23 @@
 // ExrLoader on missing, corrupt, truncated and hostile files, and on scenes lacking channels.
+#include <OpenEXR/ImfBoxAttribute.h>
+#include <OpenEXR/ImfChromaticitiesAttribute.h>
+#include <OpenEXR/ImfDeepImageStateAttribute.h>
+#include <OpenEXR/ImfDoubleAttribute.h>
+#include <OpenEXR/ImfEnvmapAttribute.h>
+#include <OpenEXR/ImfFloatAttribute.h>
+#include <OpenEXR/ImfFloatVectorAttribute.h>
+#include <OpenEXR/ImfIntAttribute.h>
+#include <OpenEXR/ImfKeyCodeAttribute.h>
+#include <OpenEXR/ImfMatrixAttribute.h>
+#include <OpenEXR/ImfOpaqueAttribute.h>
+#include <OpenEXR/ImfPreviewImageAttribute.h>
+#include <OpenEXR/ImfRationalAttribute.h>
+#include <OpenEXR/ImfStringAttribute.h>
+#include <OpenEXR/ImfStringVectorAttribute.h>
+#include <OpenEXR/ImfTimeCodeAttribute.h>
+#include <OpenEXR/ImfVecAttribute.h>
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 
 #include <algorithm>
 #include <cstring>
@@ -45,6 +63,21 @@ std::vector<char> bytesOf(const fs::path& p) {
 }
 void writeBytes(const fs::path& p, const std::vector<char>& b) {
     std::ofstream(p, std::ios::binary).write(b.data(), std::streamsize(b.size()));
+}
+
+/// Where the value of attribute `name` of type `type` starts (after its 4-byte size).
+size_t valueAt(const std::vector<char>& b, const std::string& name, const std::string& type) {
+    const std::string key = name + '\0' + type + '\0';
+    auto it = std::search(b.begin(), b.end(), key.begin(), key.end());
+    EXPECT_NE(it, b.end()) << name;
+    return size_t(it - b.begin()) + key.size() + 4;
+}
+
+/// Peak resident memory of this process so far, in MB.
+long peakRssMb() {
+    rusage u{};
+    getrusage(RUSAGE_SELF, &u);
+    return u.ru_maxrss / 1024;
 }
 }  // namespace
 
@@ -111,6 +144,158 @@ TEST(ExrLoaderRobustness, HugeDataWindowIsRefusedBeforeAllocation) {
     std::string msg = frameError((tmp.path / "f.####.exr").string(), 2);
     EXPECT_NE(msg.find("f.0002.exr"), std::string::npos) << msg;
     EXPECT_NE(msg.find("data window 100000x100000 exceeds maxPixels"), std::string::npos) << msg;
+}
+
+// Regression (exr_fuzzer finding oom-685d828a, fuzz/FINDINGS.md): Imf::Header::readFrom allocates
+// each attribute at its declared size before reading it, so a few hundred bytes declaring a 2 GB
+// string made OpenEXR allocate and zero 2 GB (libFuzzer: out-of-memory past 2048 MB). Every
+// declared size is now checked against the bytes left in the file first.
+TEST(ExrLoaderRobustness, AttributeLargerThanTheFileIsRefusedBeforeAllocation) {
+    for (const std::string type : {"string", "someUnknownType"}) {
+        SCOPED_TRACE(type);
+        TempDir tmp("hugeattr");
+        writeExr(tmp.path / "f.0001.exr", box(0, 0, 1, 1), rgb(2, 2));
+        writeExr(tmp.path / "f.0002.exr", box(0, 0, 1, 1), rgb(2, 2));
+        // A first attribute (right after magic and version) declaring a 1 GB value.
+        auto b = bytesOf(tmp.path / "f.0002.exr");
+        std::string attr = "x" + std::string(1, '\0') + type + std::string(1, '\0');
+        const int32_t size = int32_t(1) << 30;
+        attr.append(reinterpret_cast<const char*>(&size), 4);
+        b.insert(b.begin() + 8, attr.begin(), attr.end());
+        writeBytes(tmp.path / "f.0002.exr", b);
+        const long before = peakRssMb();
+        std::string msg = frameError((tmp.path / "f.####.exr").string(), 2);
+        EXPECT_NE(msg.find("f.0002.exr"), std::string::npos) << msg;
+        EXPECT_NE(msg.find("attribute 'x' (" + type + ") declares a 1073741824-byte value"),
+                  std::string::npos)
+            << msg;
+        EXPECT_NE(msg.find("refused before allocating"), std::string::npos) << msg;
+        EXPECT_LT(peakRssMb() - before, 200);  // a string would have zeroed 1024 MB
+    }
+}
+
+// A declared size that differs from what OpenEXR reads for the type (a box2i is 16 bytes, a
+// channel list ends at its empty name) would make the size check and OpenEXR's parse disagree
+// about where the next attribute starts: refused as corrupt.
+TEST(ExrLoaderRobustness, AttributeSizeDisagreeingWithItsTypeIsRefused) {
+    TempDir tmp("attrsize");
+    writeExr(tmp.path / "f.0001.exr", box(0, 0, 1, 1), rgb(2, 2));
+    const auto good = bytesOf(tmp.path / "f.0001.exr");
+    for (const auto& [name, type, expect] :
+         {std::tuple<std::string, std::string, std::string>{"dataWindow", "box2i", "its type's 16"},
+          {"channels", "chlist", "the channel list"}}) {
+        auto b = good;
+        const int32_t zero = 0;
+        std::memcpy(&b[valueAt(b, name, type) - 4], &zero, 4);
+        writeBytes(tmp.path / "f.0002.exr", b);
+        std::string msg = frameError((tmp.path / "f.####.exr").string(), 2);
+        EXPECT_NE(msg.find("f.0002.exr"), std::string::npos) << msg;
+        EXPECT_NE(msg.find("attribute '" + name + "' (" + type + "): " + expect +
+                           " does not match its declared size 0"),
+                  std::string::npos)
+            << msg;
+    }
+}
+
+// OpenEXR allocates the chunk offset table (8 bytes per scan-line block or tile) when it opens a
+// file: a 1 x 100000000 window fits maxPixels but declares 6.25 million ZIP blocks in a file of a
+// few hundred bytes.
+TEST(ExrLoaderRobustness, ChunkTableLargerThanTheFileIsRefusedBeforeAllocation) {
+    TempDir tmp("chunks");
+    writeExr(tmp.path / "f.0001.exr", box(0, 0, 0, 0), rgb(1, 1));
+    writeExr(tmp.path / "f.0002.exr", box(0, 0, 0, 0), rgb(1, 1));
+    auto b = bytesOf(tmp.path / "f.0002.exr");
+    int32_t window[4] = {0, 0, 0, 99999999};
+    std::memcpy(&b[valueAt(b, "dataWindow", "box2i")], window, sizeof window);
+    writeBytes(tmp.path / "f.0002.exr", b);
+    std::string msg = frameError((tmp.path / "f.####.exr").string(), 2);
+    EXPECT_NE(msg.find("f.0002.exr"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("header declares 6250000 chunks (data window 1x100000000), whose offset "
+                       "table alone needs 50000000 bytes"),
+              std::string::npos)
+        << msg;
+}
+
+// Tile buffers are sized by the tile description, not the image, and Imf::InputFile caches a
+// row of tiles (window width x tile height) to serve scan lines: a 6 x 5 image with 50331652 x 4
+// tiles made OpenEXR allocate 1.2 GB, a 32000 x 1 one with 16 x 4096 tiles 524 MB a channel
+// (exr_fuzzer, after the attribute fix).
+TEST(ExrLoaderRobustness, OversizedTileIsRefusedBeforeAllocation) {
+    struct Case {
+        Imath::Box2i window;
+        uint32_t tile[2];
+        std::string expect;
+    };
+    const Case cases[] = {
+        {box(0, 0, 5, 4),
+         {50331652, 4},
+         "chunk buffer (tile 50331652x4, 12 bytes per pixel) needs 2415919296 bytes, more than "
+         "16 bytes x maxPixels 134217728 = 2147483648 (refused before allocating)"},
+        {box(0, 0, 31999, 0),
+         {16, 65536},
+         "chunk buffer (tile 16x65536 in rows of 32000x65536, 12 bytes per pixel) needs "
+         "25165824000 bytes"},
+    };
+    for (const Case& c : cases) {
+        SCOPED_TRACE(c.expect);
+        TempDir tmp("hugetile");
+        WriteOptions tiled;
+        tiled.tiled = true;
+        const int w = c.window.max.x + 1, h = c.window.max.y + 1;
+        writeExr(tmp.path / "f.0001.exr", c.window, rgb(w, h), tiled);
+        writeExr(tmp.path / "f.0002.exr", c.window, rgb(w, h), tiled);
+        auto b = bytesOf(tmp.path / "f.0002.exr");
+        std::memcpy(&b[valueAt(b, "tiles", "tiledesc")], c.tile, sizeof c.tile);
+        writeBytes(tmp.path / "f.0002.exr", b);
+        EXPECT_EQ(frameError((tmp.path / "f.####.exr").string(), 1), "");
+        std::string msg = frameError((tmp.path / "f.####.exr").string(), 2);
+        EXPECT_NE(msg.find("f.0002.exr"), std::string::npos) << msg;
+        EXPECT_NE(msg.find(c.expect), std::string::npos) << msg;
+    }
+}
+
+// The size checks must not refuse a valid header: one attribute of every type OpenEXR 3.1
+// reads, plus an unknown (opaque) one.
+TEST(ExrLoaderRobustness, HeaderWithEveryAttributeTypeLoads) {
+    TempDir tmp("alltypes");
+    Imf::Header extra;
+    auto add = [&](const std::string& n, const Imf::Attribute& a) {
+        extra.insert("kestrel.t." + n, a);
+    };
+    add("box2i", Imf::Box2iAttribute(box(1, 2, 3, 4)));
+    add("box2f", Imf::Box2fAttribute(Imath::Box2f({0, 0}, {1, 1})));
+    add("chromaticities", Imf::ChromaticitiesAttribute(Imf::Chromaticities()));
+    add("deepImageState", Imf::DeepImageStateAttribute(Imf::DIS_MESSY));
+    add("double", Imf::DoubleAttribute(2.5));
+    add("envmap", Imf::EnvmapAttribute(Imf::ENVMAP_CUBE));
+    add("float", Imf::FloatAttribute(1.5f));
+    add("floatvector", Imf::FloatVectorAttribute({1.f, 2.f, 3.f}));
+    add("int", Imf::IntAttribute(7));
+    add("keycode", Imf::KeyCodeAttribute(Imf::KeyCode()));
+    add("m33f", Imf::M33fAttribute(Imath::M33f()));
+    add("m33d", Imf::M33dAttribute(Imath::M33d()));
+    add("m44f", Imf::M44fAttribute(Imath::M44f()));
+    add("m44d", Imf::M44dAttribute(Imath::M44d()));
+    Imf::PreviewRgba px[6];
+    add("preview", Imf::PreviewImageAttribute(Imf::PreviewImage(3, 2, px)));
+    add("rational", Imf::RationalAttribute(Imf::Rational(24000, 1001)));
+    add("string", Imf::StringAttribute("canonical-ish"));
+    add("emptystring", Imf::StringAttribute(""));
+    add("stringvector", Imf::StringVectorAttribute({"a", "", "bcd"}));
+    add("timecode", Imf::TimeCodeAttribute(Imf::TimeCode(1, 2, 3, 4)));
+    add("v2i", Imf::V2iAttribute({1, 2}));
+    add("v2f", Imf::V2fAttribute({1, 2}));
+    add("v2d", Imf::V2dAttribute({1, 2}));
+    add("v3i", Imf::V3iAttribute({1, 2, 3}));
+    add("v3f", Imf::V3fAttribute({1, 2, 3}));
+    add("v3d", Imf::V3dAttribute({1, 2, 3}));
+    add("opaque", Imf::OpaqueAttribute("someUnknownType"));
+    writeExr(tmp.path / "f.0001.exr", box(0, 0, 1, 1), rgb(2, 2, 0.25f), {}, &extra);
+    auto h = PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / "f.####.exr").string()}});
+    h.useOutputs({"color"});
+    h.ctx.frameNumber = 1;
+    h.run();
+    EXPECT_EQ(h.out("color").at(0, 1, 1), 0.25f);
 }
 
 TEST(ExrLoaderRobustness, AbsentChannelNamesChannelAndLayout) {
