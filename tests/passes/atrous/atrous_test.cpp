@@ -46,8 +46,15 @@ Scene flatScene(int w, int h, float c, float v) {
 }  // namespace
 
 TEST(PixelMath, FastExp2AndLog2AreAccurate) {
-    for (float x = -125.f; x < 125.f; x += 0.37f)
-        EXPECT_NEAR(px::fastExp2(x) / std::exp2(x), 1.f, 2e-5f) << x;
+    double worst = 0;
+    for (float x = -126.f; x <= 126.f; x += 0.0137f) {
+        const double r = std::fabs(double(px::fastExp2(x)) / std::exp2(double(x)) - 1.0);
+        worst = std::max(worst, r);
+        ASSERT_LT(r, 3e-7) << x;  // the bound PixelMath.h states
+    }
+    std::printf("fastExp2: worst relative error %.2g on [-126, 126]\n", worst);
+    EXPECT_EQ(px::fastExp2(-127.f), 0.f);
+    EXPECT_EQ(px::fastExp2(126.5f), std::exp2(126.f));
     EXPECT_EQ(px::fastExp2(-200.f), 0.f);
     EXPECT_EQ(px::fastExp2(-1e30f), 0.f);
     for (float x = 1e-30f; x < 4.f; x *= 1.37f)
