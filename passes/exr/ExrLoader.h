@@ -3,6 +3,9 @@
 // (canonical, Blender Cycles multilayer, GAMES202 homework), converting each to the in-memory
 // conventions of kestrel/Conventions.h, and reads only the channels a consumer needs.
 // Parameters and layouts: docs/layouts.md.
+#include <atomic>
+#include <future>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -26,6 +29,8 @@ public:
     std::optional<Extent> beginFrame(FrameContext& ctx) override;
     void execute(FrameContext& ctx, PassIO& io) override;
     std::vector<int64_t> availableFrames() const override;
+    void beginRun(const RunContext& rc) override;
+    void endRun() override;
 
     /// For tests and logs: the channels the last execute read ("role:name" for GAMES202).
     const std::vector<std::string>& channelsRead() const { return channelsRead_; }
@@ -39,9 +44,21 @@ private:
     ExrInput& openRole(const std::string& role, int64_t frame);
     void fillScene(int64_t frame, SceneData& scene);
 
+    /// Decoded file channels of one frame, read ahead on a background thread while the graph
+    /// computes the frame before it (parameter "prefetch").
+    struct Prefetch {
+        int64_t frame = 0;
+        std::vector<std::pair<std::string, std::unique_ptr<ExrInput>>> open;
+        std::map<ChannelRef, PlaneStorage> planes;
+        bool ok = false;  // false: any failure; the frame is then read as without prefetch
+    };
+    void startPrefetch(int64_t frame, const std::map<ChannelRef, float>& fills);
+    void joinPrefetch();
+
     // parameters
     std::string path_, layoutParam_, cameraParam_, channelsParam_;
     int64_t maxPixels_;
+    bool prefetch_ = true;
 
     // compile-time state (from the first frame; immutable while frames run)
     bool planned_ = false;
@@ -61,6 +78,15 @@ private:
     size_t scratchPixels_ = 0;
     std::vector<std::string> channelsRead_;
     bool logged_ = false;
+
+    // read-ahead state
+    std::future<void> prefetchJob_;
+    std::unique_ptr<Prefetch> pending_;         // written by the job until joined
+    std::unique_ptr<Prefetch> ready_;           // the prefetched frame beginFrame adopted
+    std::map<ChannelRef, PlaneStorage> spare_;  // planes reused by the next prefetch
+    std::atomic<bool> cancel_{false};
+    int64_t lastFrame_ = INT64_MAX, step_ = 1;
+    bool haveLast_ = false;
 };
 
 }  // namespace kestrel::exr
