@@ -168,9 +168,16 @@ void ExrLoader::joinPrefetch() {
 }
 
 void ExrLoader::startPrefetch(int64_t frame, const std::map<ChannelRef, float>& fills) {
+    joinPrefetch();  // execute without beginFrame (tests): never two read-aheads at once
+    if (pending_) {
+        spare_ = std::move(pending_->planes);
+        pending_.reset();
+    }
     if (frame > lastFrame_ || fills.empty()) return;
     const int W = int(display_.width());
     const size_t N = size_t(W) * size_t(display_.height());
+    if (spareN_ != N) spare_.clear();  // planes of another frame size
+    spareN_ = N;
     auto job = std::make_unique<Prefetch>();
     job->frame = frame;
     // Files in the order execute opens them: the primary first (its window is the frame's).

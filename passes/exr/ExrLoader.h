@@ -84,6 +84,7 @@ private:
     std::unique_ptr<Prefetch> pending_;         // written by the job until joined
     std::unique_ptr<Prefetch> ready_;           // the prefetched frame beginFrame adopted
     std::map<ChannelRef, PlaneStorage> spare_;  // planes reused by the next prefetch
+    size_t spareN_ = 0;                         // their size (pixels)
     std::atomic<bool> cancel_{false};
     int64_t lastFrame_ = INT64_MAX, step_ = 1;
     bool haveLast_ = false;

@@ -168,3 +168,21 @@ TEST(ExrLoaderPrefetch, DescribeDocumentsTheMemoryCost) {
     ASSERT_NE(p, nullptr);
     EXPECT_NE(p->description.find("MB"), std::string::npos);
 }
+
+TEST(ExrLoaderPrefetch, FrameSizeChangingMidSequenceMatchesUnprefetched) {
+    TempDir tmp("prefetch_size");
+    const int sizes[][2] = {{32, 24}, {48, 40}, {48, 40}, {16, 16}, {48, 40}};
+    for (int f = 1; f <= 5; ++f) {
+        char name[32];
+        std::snprintf(name, sizeof name, "f.%04d.exr", f);
+        const int w = sizes[f - 1][0], h = sizes[f - 1][1];
+        writeExr(tmp.path / name, box(0, 0, w - 1, h - 1), noise(w, h, uint32_t(f)));
+    }
+    const std::string pattern = (tmp.path / "f.####.exr").string();
+    Frames off = runFrames(pattern, 1, 5, false), on = runFrames(pattern, 1, 5, true);
+    for (size_t i = 0; i < 5; ++i) {
+        EXPECT_EQ(on.errors[i], "");
+        EXPECT_EQ(on.planes[i].size(), size_t(sizes[i][0] * sizes[i][1] * 3));
+        EXPECT_TRUE(sameBits(off.planes[i], on.planes[i])) << "frame " << i + 1;
+    }
+}
