@@ -246,7 +246,9 @@ namespace {
 
 TEST(Overrides, PatternSetsEveryMatchingPassAndNothingElse) {
     GraphDesc g;
-    g.passes = {{"diffuse_atrous0", "ATrous"}, {"diffuse_atrous1", "ATrous"}, {"taa", "TAA"}};
+    g.passes = {{"diffuse_atrous0", "ATrous", "{}", ""},
+                {"diffuse_atrous1", "ATrous", "{}", ""},
+                {"taa", "TAA", "{}", ""}};
     applyOverride(g, "*atrous*.exact=true");
     EXPECT_EQ(g.passes[0].paramsJson, R"({"exact":true})");
     EXPECT_EQ(g.passes[1].paramsJson, R"({"exact":true})");
