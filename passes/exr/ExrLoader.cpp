@@ -125,10 +125,11 @@ PassDesc ExrLoader::describe() {
     d.paramInt("maxPixels", int64_t(1) << 27, 1, int64_t(1) << 40,
                "largest data or display window accepted (pixels), checked before allocating; "
                "OpenEXR's per-chunk buffers are held to 16 bytes per maxPixels pixel");
-    d.paramBool("prefetch", true,
+    d.paramBool("prefetch", false,
                 "decode the next frame on a background thread while the graph computes this "
                 "one; costs a second set of the channels read (4 bytes per channel per pixel: "
-                "about 160 MB for 19 channels at 1920x1080)");
+                "about 160 MB, 76 B/px, for 19 channels at 1920x1080), so it is off by default "
+                "(svgf.json's whole run stays under 256 B/px); pays off with a spare core");
     return d;
 }
 
