@@ -1,0 +1,63 @@
+// Reprojection at 1920x1080 on the synthetic scene of ReprojectionScene.h (moving discs over a
+// panning background: ~90% of 8-pixel groups share one integer tap offset, as in the shipped
+// bench scene). Reports megapixels per second (wall time: the pass runs on its own pool).
+// Built as `reprojection_bench`, not registered with ctest: run it by hand.
+#include <benchmark/benchmark.h>
+
+#include <string>
+
+#include "ReprojectionPass.h"
+#include "ReprojectionScene.h"
+#include "kestrel/testing/PassHarness.h"
+
+namespace {
+
+using namespace kestrel;
+using kestrel::testing::PassHarness;
+
+constexpr int kW = 1920, kH = 1080;
+
+const reprojscene::Frames& frames() {
+    static const reprojscene::Frames f = reprojscene::makeFrames(kW, kH, 1);
+    return f;
+}
+
+// state.range(0): threads; state.range(1): 0 = SVGF (bilinear, colour + moments + length),
+// 1 = TAA history (Catmull-Rom, colour only).
+void BM_Reprojection(benchmark::State& state) {
+    const auto& f = frames();
+    const bool taa = state.range(1) != 0;
+    auto h = PassHarness::make<ReprojectionPass>(
+        {kW, kH}, {{"filter", std::string(taa ? "catmullrom" : "bilinear")}}, int(state.range(0)));
+    h.bind("depth", f.depth);
+    h.bind("normal", f.normal);
+    h.bind("objectId", f.objectId);
+    h.bind("motion", f.motion);
+    h.bind("prevDepth", f.prevDepth);
+    h.bind("prevNormal", f.prevNormal);
+    h.bind("prevObjectId", f.prevObjectId);
+    h.bind("prevColor", f.prevColor);
+    if (!taa) {
+        h.bind("prevMoments", f.prevMoments);
+        h.bind("prevHistoryLength", f.prevHistoryLength);
+    } else {
+        h.useOutputs({"color", "historyLength"});
+    }
+    h.run();  // allocate the outputs
+    for (auto _ : state) {
+        h.run();
+        benchmark::DoNotOptimize(h.out("color").channel(0)[0]);
+    }
+    state.counters["Mpx/s"] = benchmark::Counter(double(kW) * kH * double(state.iterations()) / 1e6,
+                                                 benchmark::Counter::kIsRate);
+    state.SetLabel(taa ? "catmullrom (taaReprojection)" : "bilinear (single_reprojection)");
+}
+BENCHMARK(BM_Reprojection)
+    ->ArgsProduct({{1, 2}, {0, 1}})
+    ->ArgNames({"threads", "taa"})
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();

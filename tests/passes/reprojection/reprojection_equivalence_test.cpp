@@ -1,0 +1,284 @@
+// Equivalence of the optimised Reprojection pass with the plain scalar reference
+// (ReprojectionReference.h) on random and extreme inputs, every input combination and 1-3
+// threads. Tolerance: exact (0 ulp, bitwise identical floats including the sign of zero).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <string>
+
+#include "ReprojectionPass.h"
+#include "ReprojectionReference.h"
+#include "ReprojectionScene.h"
+#include "kestrel/testing/PassHarness.h"
+
+using namespace kestrel;
+using kestrel::testing::PassHarness;
+using reprojscene::Frames;
+using reprojscene::hash01;
+
+namespace {
+
+/// Which inputs are bound (history inputs: bound and valid).
+struct Binding {
+    bool objectId = true, motion = true, position = true, prevObjectId = true;
+    bool prevColor = true, prevMoments = true, prevHistoryLength = true, cameras = false;
+};
+
+void setScenes(SceneData& cur, SceneData& prev) {
+    cur.hasCamera = prev.hasCamera = true;
+    // Previous pixel = perspective-ish map of the position: a shift, a shear and a w that
+    // depends on z, so every matrix entry matters.
+    prev.worldToPixel = Mat4::identity();
+    prev.worldToPixel.m[0] = {1.01f, 0.02f, 0.003f, 1.3f};
+    prev.worldToPixel.m[1] = {-0.01f, 0.99f, 0.002f, -0.4f};
+    prev.worldToPixel.m[3] = {0.f, 0.f, -0.001f, 0.99f};
+    prev.worldToCamera = Mat4::identity();
+    prev.worldToCamera.m[2][3] = 0.05f;
+    cur.worldToPixel = Mat4::identity();
+    cur.worldToCamera = Mat4::identity();
+    for (int id = 1; id <= 5; ++id) {
+        Mat4 m = Mat4::identity();
+        m.m[0][3] = 0.5f * float(id);
+        m.m[1][3] = -0.25f * float(id);
+        cur.objectToWorld[id] = m;
+        if (id == 5) continue;  // only in this frame: the camera-only transform
+        Mat4 p = Mat4::identity();
+        p.m[0][3] = 0.5f * float(id) + 0.7f;
+        p.m[1][3] = -0.25f * float(id) - 0.3f * float(id % 2);
+        prev.objectToWorld[id] = p;
+    }
+    Mat4 singular{};  // not invertible: the camera-only transform
+    cur.objectToWorld[3] = singular;
+}
+
+reprojref::Outputs runReference(const Frames& f, const Binding& b, const SceneData* cur,
+                                const SceneData* prev, bool catmullRom) {
+    reprojref::Inputs in;
+    in.depth = &f.depth;
+    in.normal = &f.normal;
+    in.objectId = b.objectId ? &f.objectId : nullptr;
+    in.motion = b.motion ? &f.motion : nullptr;
+    in.position = b.position ? &f.position : nullptr;
+    in.prevDepth = &f.prevDepth;
+    in.prevNormal = &f.prevNormal;
+    in.prevObjectId = b.prevObjectId ? &f.prevObjectId : nullptr;
+    in.prevColor = b.prevColor ? &f.prevColor : nullptr;
+    in.prevMoments = b.prevMoments ? &f.prevMoments : nullptr;
+    in.prevHistoryLength = b.prevHistoryLength ? &f.prevHistoryLength : nullptr;
+    in.scene = cur;
+    in.previousScene = prev;
+    reprojref::Params p;
+    p.catmullRom = catmullRom;
+    return reprojref::reproject(in, p);
+}
+
+/// Bitwise comparison; reports the first differing float.
+::testing::AssertionResult sameBits(const Image& a, const Image& b) {
+    for (int c = 0; c < channelCount(a.format()); ++c)
+        for (int y = 0; y < a.height(); ++y)
+            for (int x = 0; x < a.width(); ++x)
+                if (std::memcmp(&a.at(c, x, y), &b.at(c, x, y), sizeof(float)) != 0)
+                    return ::testing::AssertionFailure()
+                           << "channel " << c << " pixel (" << x << ", " << y << "): pass "
+                           << a.at(c, x, y) << " reference " << b.at(c, x, y);
+    return ::testing::AssertionSuccess();
+}
+
+void expectEquivalent(const Frames& f, const Binding& b, bool catmullRom, int threads,
+                      const std::string& what) {
+    SCOPED_TRACE(what + (catmullRom ? " catmullrom" : " bilinear") + " threads " +
+                 std::to_string(threads));
+    const Extent e = f.depth.extent();
+    auto h = PassHarness::make<ReprojectionPass>(
+        e, {{"filter", std::string(catmullRom ? "catmullrom" : "bilinear")}}, threads);
+    h.bind("depth", f.depth);
+    h.bind("normal", f.normal);
+    if (b.objectId) h.bind("objectId", f.objectId);
+    if (b.motion) h.bind("motion", f.motion);
+    if (b.position) h.bind("position", f.position);
+    h.bind("prevDepth", f.prevDepth);
+    h.bind("prevNormal", f.prevNormal);
+    if (b.prevObjectId) h.bind("prevObjectId", f.prevObjectId);
+    if (b.prevColor) h.bind("prevColor", f.prevColor);
+    if (b.prevMoments) h.bind("prevMoments", f.prevMoments);
+    if (b.prevHistoryLength) h.bind("prevHistoryLength", f.prevHistoryLength);
+    if (b.cameras) setScenes(h.scene, h.previousScene);
+    h.run();
+    const auto ref = runReference(f, b, b.cameras ? &h.scene : nullptr,
+                                  b.cameras ? &h.previousScene : nullptr, catmullRom);
+    EXPECT_TRUE(sameBits(h.out("color"), ref.color)) << "color";
+    EXPECT_TRUE(sameBits(h.out("moments"), ref.moments)) << "moments";
+    EXPECT_TRUE(sameBits(h.out("historyLength"), ref.historyLength)) << "historyLength";
+}
+
+void expectEquivalentAll(const Frames& f, const Binding& b, const std::string& what) {
+    for (bool cr : {false, true})
+        for (int threads : {1, 2, 3}) expectEquivalent(f, b, cr, threads, what);
+}
+
+/// Overwrites about `fraction` of every float input's values with extreme ones.
+void sprinkleExtremes(Frames& f, float fraction, int seed) {
+    const float vals[] = {std::numeric_limits<float>::quiet_NaN(),
+                          std::numeric_limits<float>::infinity(),
+                          -std::numeric_limits<float>::infinity(),
+                          1e30f,
+                          -1e30f,
+                          std::numeric_limits<float>::max(),
+                          0.f,
+                          -0.f,
+                          -1.f,
+                          std::numeric_limits<float>::denorm_min(),
+                          -3e-39f,
+                          1e-30f,
+                          2.f,
+                          -2.5f,
+                          1e10f,
+                          1e7f,
+                          -1e7f};
+    constexpr int kVals = int(sizeof(vals) / sizeof(vals[0]));
+    int s = seed;
+    for (Image* im : {&f.depth, &f.normal, &f.motion, &f.position, &f.prevDepth, &f.prevNormal,
+                      &f.prevColor, &f.prevMoments, &f.prevHistoryLength}) {
+        ++s;
+        for (int c = 0; c < channelCount(im->format()); ++c)
+            for (int y = 0; y < im->height(); ++y)
+                for (int x = 0; x < im->width(); ++x)
+                    if (hash01(x, y, s * 7 + c) < fraction)
+                        im->at(c, x, y) = vals[int(hash01(x, y, s * 13 + c) * kVals)];
+    }
+    for (Image* im : {&f.objectId, &f.prevObjectId}) {
+        ++s;
+        for (int y = 0; y < im->height(); ++y)
+            for (int x = 0; x < im->width(); ++x)
+                if (hash01(x, y, s) < fraction) im->atInt(x, y) = int(hash01(x, y, s + 1) * 4) - 1;
+    }
+}
+
+}  // namespace
+
+TEST(ReprojectionEquivalence, SceneWithMotionVectors) {
+    for (int seed : {1, 2}) {
+        const Frames f = reprojscene::makeFrames(97, 61, seed);
+        expectEquivalentAll(f, {}, "scene seed " + std::to_string(seed));
+    }
+}
+
+TEST(ReprojectionEquivalence, StaticAndFastScenes) {
+    expectEquivalentAll(reprojscene::makeFrames(64, 40, 3, 0.f), {}, "static");
+    expectEquivalentAll(reprojscene::makeFrames(64, 40, 4, 6.f), {}, "fast");
+}
+
+TEST(ReprojectionEquivalence, RandomMotionIncludingOffScreen) {
+    Frames f = reprojscene::makeFrames(53, 47, 5);
+    for (int y = 0; y < 47; ++y)
+        for (int x = 0; x < 53; ++x) {
+            // Mostly small, sometimes integer or half-integer, sometimes far off screen.
+            const float r = hash01(x, y, 100);
+            float mx = 8.f * hash01(x, y, 101) - 4.f, my = 8.f * hash01(x, y, 102) - 4.f;
+            if (r < 0.1f) mx = std::round(mx), my = std::round(my);
+            if (r >= 0.1f && r < 0.2f) mx = std::round(mx) + 0.5f, my = std::round(my) - 0.5f;
+            if (r >= 0.2f && r < 0.25f) mx = 200.f * (hash01(x, y, 103) - 0.5f);
+            f.motion.at(0, x, y) = mx;
+            f.motion.at(1, x, y) = my;
+        }
+    expectEquivalentAll(f, {}, "random motion");
+}
+
+TEST(ReprojectionEquivalence, ExtremeValues) {
+    for (float fraction : {0.02f, 0.2f}) {
+        Frames f = reprojscene::makeFrames(61, 43, 6);
+        sprinkleExtremes(f, fraction, int(fraction * 1000));
+        expectEquivalentAll(f, {}, "extremes " + std::to_string(fraction));
+        Binding m;
+        m.motion = false;
+        m.cameras = true;
+        expectEquivalentAll(f, m, "extremes, matrices " + std::to_string(fraction));
+    }
+}
+
+TEST(ReprojectionEquivalence, AllZeroAndDenormalInputs) {
+    Frames f = reprojscene::makeFrames(40, 24, 7);
+    for (Image* im : {&f.prevColor, &f.prevMoments, &f.prevHistoryLength}) im->fill(0.f);
+    expectEquivalentAll(f, {}, "zero history");
+    for (Image* im : {&f.prevColor, &f.prevMoments, &f.prevHistoryLength})
+        im->fill(-std::numeric_limits<float>::denorm_min());
+    expectEquivalentAll(f, {}, "negative denormal history");
+    for (Image* im : {&f.depth, &f.prevDepth, &f.normal, &f.prevNormal}) im->fill(0.f);
+    expectEquivalentAll(f, {}, "zero geometry");
+}
+
+TEST(ReprojectionEquivalence, MatrixAndIdentityPaths) {
+    Frames f = reprojscene::makeFrames(71, 45, 8);
+    for (int y = 0; y < 45; ++y)
+        for (int x = 0; x < 71; ++x) f.objectId.atInt(x, y) = f.objectId.atInt(x, y) % 6 - 1;
+    Binding m;
+    m.motion = false;
+    m.cameras = true;
+    expectEquivalentAll(f, m, "matrices");
+    m.objectId = false;
+    expectEquivalentAll(f, m, "matrices without ids");
+    Binding id;
+    id.motion = id.position = false;
+    expectEquivalentAll(f, id, "identity");
+    id.position = true;  // position without cameras: identity too
+    expectEquivalentAll(f, id, "position without cameras");
+}
+
+TEST(ReprojectionEquivalence, InputCombinations) {
+    const Frames f = reprojscene::makeFrames(45, 33, 9);
+    for (int mask = 0; mask < 32; ++mask) {
+        Binding b;
+        b.objectId = mask & 1;
+        b.prevObjectId = mask & 2;
+        b.prevColor = mask & 4;
+        b.prevMoments = mask & 8;
+        b.prevHistoryLength = mask & 16;
+        expectEquivalentAll(f, b, "inputs mask " + std::to_string(mask));
+    }
+}
+
+TEST(ReprojectionEquivalence, TinyImages) {
+    for (auto [w, h] : {std::pair{1, 1}, {1, 7}, {9, 1}, {2, 2}, {3, 5}, {17, 3}}) {
+        Frames f = reprojscene::makeFrames(w, h, 10, 0.3f);
+        expectEquivalentAll(f, {}, std::to_string(w) + "x" + std::to_string(h));
+    }
+}
+
+TEST(ReprojectionEquivalence, Thresholds) {
+    const Frames f = reprojscene::makeFrames(50, 30, 11);
+    for (auto [dz, dn] : {std::pair{0.0, 0.0}, {0.5, 0.1}, {1e6, 1e6}}) {
+        auto h = PassHarness::make<ReprojectionPass>(
+            f.depth.extent(), {{"depthThreshold", dz}, {"normalThreshold", dn}}, 2);
+        h.bind("depth", f.depth);
+        h.bind("normal", f.normal);
+        h.bind("objectId", f.objectId);
+        h.bind("motion", f.motion);
+        h.bind("prevDepth", f.prevDepth);
+        h.bind("prevNormal", f.prevNormal);
+        h.bind("prevObjectId", f.prevObjectId);
+        h.bind("prevColor", f.prevColor);
+        h.bind("prevMoments", f.prevMoments);
+        h.bind("prevHistoryLength", f.prevHistoryLength);
+        h.run();
+        reprojref::Inputs in;
+        in.depth = &f.depth;
+        in.normal = &f.normal;
+        in.objectId = &f.objectId;
+        in.motion = &f.motion;
+        in.prevDepth = &f.prevDepth;
+        in.prevNormal = &f.prevNormal;
+        in.prevObjectId = &f.prevObjectId;
+        in.prevColor = &f.prevColor;
+        in.prevMoments = &f.prevMoments;
+        in.prevHistoryLength = &f.prevHistoryLength;
+        reprojref::Params p;
+        p.depthThreshold = float(dz);
+        p.normalThreshold = float(dn);
+        const auto ref = reprojref::reproject(in, p);
+        EXPECT_TRUE(sameBits(h.out("color"), ref.color)) << dz << " " << dn;
+        EXPECT_TRUE(sameBits(h.out("moments"), ref.moments)) << dz << " " << dn;
+        EXPECT_TRUE(sameBits(h.out("historyLength"), ref.historyLength)) << dz << " " << dn;
+    }
+}
