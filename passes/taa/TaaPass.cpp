@@ -12,24 +12,194 @@ namespace {
 
 constexpr float kMaxValue = 1e18f;  // keeps 3x3 sums of squares finite
 
-float sanitise(float v) {
+inline float sanitise(float v) {
     return v == v ? std::clamp(v, -kMaxValue, kMaxValue) : 0.f;
 }
 
+// Floating-point evaluation. The plugin is compiled with -ffp-contract=off and every fused
+// multiply-add is spelled out with std::fma: the arithmetic is exactly the one the compiler
+// generated for the previous implementation (which contracted some products into FMAs and not
+// others), so results are bit-identical to it, and they no longer depend on what a compiler
+// version chooses to contract.
+
 // YCoCg (Malvar & Sullivan 2003): a luma/chroma basis where the neighbourhood box fits the
-// colour distribution more tightly than RGB (Karis 2014).
+// colour distribution more tightly than RGB (Karis 2014). Products rounded, then summed.
 struct Ycc {
     float y, co, cg;
 };
 inline Ycc toYcc(float r, float g, float b) {
-    return {0.25f * r + 0.5f * g + 0.25f * b, 0.5f * r - 0.5f * b,
-            -0.25f * r + 0.5f * g - 0.25f * b};
+    const float r4 = 0.25f * r, g2 = 0.5f * g, b4 = 0.25f * b;
+    return {(r4 + g2) + b4, 0.5f * r - 0.5f * b, (g2 - r4) - b4};
 }
+
+struct Params {
+    float alpha, gamma;
+    bool clip, antiFlicker;
+};
+
+// One pixel's TAA from its YCoCg colour c, 3x3 neighbourhood sums s1 = sum(q - c),
+// s2 = sum((q - c)^2) over n taps, and the YCoCg history hv; returns the YCoCg result.
+// Interior: whether the pixel has a full 3x3 window; the blend's final multiply-add is fused on
+// the history term there and on the current term at the border (as before).
+template <bool Interior>
+__attribute__((always_inline)) inline void resolvePixel(const Params& p, const float c[3],
+                                                        const float s1[3], const float s2[3],
+                                                        float n, float hv[3], float res[3]) {
+    float mu[3], lo[3], hi[3];
+    for (int ch = 0; ch < 3; ++ch) {
+        const float m1 = s1[ch] / n;
+        const float ext = p.gamma * std::sqrt(std::max(0.f, std::fma(-m1, m1, s2[ch] / n)));
+        mu[ch] = c[ch] + m1;
+        // The box always contains the current colour: a lone bright pixel is outside its own
+        // mean +- sigma, and clipping it would make TAA dim every small feature (a static scene
+        // must converge to the input).
+        lo[ch] = std::min(mu[ch] - ext, c[ch]);
+        hi[ch] = std::max(mu[ch] + ext, c[ch]);
+    }
+    if (p.clip) {
+        // Move H towards mu until it is inside the box (Pedersen 2016); mu lies inside, so t
+        // stays in [0, 1]. H is above the box or below it, never both (lo <= hi, and every
+        // comparison with a NaN bound is false), so one quotient per channel: the one the
+        // side it leaves by needs. Selects instead of branches; an unselected quotient may be
+        // Inf/NaN and is discarded.
+        float t = 1.f;
+        for (int ch = 0; ch < 3; ++ch) {
+            const float off = hv[ch] - mu[ch];
+            const bool above = hv[ch] > hi[ch], below = hv[ch] < lo[ch];
+            const float q = ((above ? hi[ch] : lo[ch]) - mu[ch]) / off;
+            const float tq = std::min(t, q);
+            t = above | below ? tq : t;
+        }
+        for (int ch = 0; ch < 3; ++ch) hv[ch] = std::fma(hv[ch] - mu[ch], t, mu[ch]);
+    } else {
+        for (int ch = 0; ch < 3; ++ch) hv[ch] = std::clamp(hv[ch], lo[ch], hi[ch]);
+    }
+    float wc = p.alpha, wh = 1.f - p.alpha;
+    if (p.antiFlicker) {
+        wc /= 1.f + std::max(0.f, c[0]);
+        wh /= 1.f + std::max(0.f, hv[0]);
+    }
+    const float sum = wc + wh;
+    const bool pos = sum > 0.f;
+    const float wcn = wc / sum, whn = wh / sum;
+    wc = pos ? wcn : 1.f;
+    wh = pos ? whn : 0.f;
+    for (int ch = 0; ch < 3; ++ch)
+        res[ch] = Interior ? std::fma(wh, hv[ch], wc * c[ch]) : std::fma(wc, c[ch], wh * hv[ch]);
+}
+
 inline void fromYcc(const float v[3], float& r, float& g, float& b) {
     r = v[0] + v[1] - v[2];
     g = v[0] + v[2];
     b = v[0] - v[1] - v[2];
 }
+
+// This frame's colour in YCoCg, sanitised, for one row (three planes).
+void yccRow(int w, const float* __restrict r, const float* __restrict g, const float* __restrict b,
+            float* __restrict y, float* __restrict co, float* __restrict cg) {
+    for (int x = 0; x < w; ++x) {
+        const Ycc v = toYcc(sanitise(r[x]), sanitise(g[x]), sanitise(b[x]));
+        y[x] = v.y;
+        co[x] = v.co;
+        cg[x] = v.cg;
+    }
+}
+
+/// The rows one output row reads.
+struct RowIo {
+    const float* ycc[3][3];     ///< [channel][row y-1, y, y+1] of the YCoCg colour
+    const float *cr, *cg, *cb;  ///< this row's colour
+    const float *hr, *hg, *hb;  ///< this row's history
+    const float* len;           ///< this row's history length, or null (interior: ones)
+    float *o0, *o1, *o2;
+};
+
+// Interior pixels x in [1, w - 1) of a row with rows above and below: a fixed, branch-free
+// 3x3 window and selects, vectorised by the compiler across x.
+template <bool Clip, bool AntiFlicker>
+void interiorRow(int w, const RowIo& io, const Params& prm) {
+    const Params p{prm.alpha, prm.gamma, Clip, AntiFlicker};
+    const float *y0 = io.ycc[0][0], *y1 = io.ycc[0][1], *y2 = io.ycc[0][2];
+    const float *a0 = io.ycc[1][0], *a1 = io.ycc[1][1], *a2 = io.ycc[1][2];
+    const float *b0 = io.ycc[2][0], *b1 = io.ycc[2][1], *b2 = io.ycc[2][2];
+    const float *cr = io.cr, *cg = io.cg, *cb = io.cb, *hr = io.hr, *hg = io.hg, *hb = io.hb;
+    const float* len = io.len;
+    float *o0 = io.o0, *o1 = io.o1, *o2 = io.o2;
+    constexpr float kFinite = std::numeric_limits<float>::max();
+#pragma GCC ivdep
+    for (int x = 1; x < w - 1; ++x) {
+        // 3x3 sums of one channel, shifted by the centre (taps row by row, left to right).
+        // Fused: whether the squares are accumulated with FMAs; they are not for Y and Co
+        // (the previous implementation's compiled code summed those two channels as a pair,
+        // with rounded products) and are for Cg.
+        auto window = [x](const float* r0, const float* r1, const float* r2, bool fused, float& c,
+                          float& s1, float& s2) __attribute__((always_inline)) {
+            c = r1[x];
+            float q1 = 0, q2 = 0;
+            for (const float* row : {r0, r1, r2})
+                for (int k = -1; k <= 1; ++k) {
+                    const float d = row[x + k] - c;
+                    q1 += d;
+                    q2 = fused ? std::fma(d, d, q2) : q2 + d * d;
+                }
+            s1 = q1;
+            s2 = q2;
+        };
+        float c[3], s1[3], s2[3];
+        window(y0, y1, y2, false, c[0], s1[0], s2[0]);
+        window(a0, a1, a2, false, c[1], s1[1], s2[1]);
+        window(b0, b1, b2, true, c[2], s1[2], s2[2]);
+        const bool valid = (len[x] > 0.f) & (std::fabs(hr[x]) <= kFinite) &
+                           (std::fabs(hg[x]) <= kFinite) & (std::fabs(hb[x]) <= kFinite);
+        const Ycc v = toYcc(sanitise(hr[x]), sanitise(hg[x]), sanitise(hb[x]));
+        float hv[3] = {v.y, v.co, v.cg}, res[3];
+        resolvePixel<true>(p, c, s1, s2, 9.f, hv, res);
+        float r, g, b;
+        fromYcc(res, r, g, b);
+        o0[x] = valid ? r : sanitise(cr[x]);
+        o1[x] = valid ? g : sanitise(cg[x]);
+        o2[x] = valid ? b : sanitise(cb[x]);
+    }
+}
+
+// One pixel with the window clamped to the image (borders, rows without a neighbour).
+// io.ycc[ch][0..2]: rows y-1, y, y+1 (null where outside the image).
+void borderPixel(int x, int w, int ya, int yb, int y, const RowIo& io, const Params& p) {
+    const float* lenRow = io.len;
+    const bool valid = (!lenRow || lenRow[x] > 0.f) && std::isfinite(io.hr[x]) &&
+                       std::isfinite(io.hg[x]) && std::isfinite(io.hb[x]);
+    if (!valid) {  // disoccluded: exactly the current colour
+        io.o0[x] = sanitise(io.cr[x]);
+        io.o1[x] = sanitise(io.cg[x]);
+        io.o2[x] = sanitise(io.cb[x]);
+        return;
+    }
+    const float c[3] = {io.ycc[0][1][x], io.ycc[1][1][x], io.ycc[2][1][x]};
+    const Ycc v = toYcc(sanitise(io.hr[x]), sanitise(io.hg[x]), sanitise(io.hb[x]));
+    float hv[3] = {v.y, v.co, v.cg}, res[3];
+    // 3x3 mean and standard deviation, shifted by the centre for precision.
+    const int xa = std::max(0, x - 1), xb = std::min(w - 1, x + 1);
+    const float n = float((yb - ya + 1) * (xb - xa + 1));
+    float s1[3], s2[3];
+    for (int ch = 0; ch < 3; ++ch) {
+        float a1 = 0, a2 = 0;
+        for (int yy = ya; yy <= yb; ++yy) {
+            const float* p = io.ycc[ch][yy - y + 1];
+            for (int xx = xa; xx <= xb; ++xx) {
+                const float d = p[xx] - c[ch];
+                a1 += d;
+                a2 = std::fma(d, d, a2);
+            }
+        }
+        s1[ch] = a1;
+        s2[ch] = a2;
+    }
+    resolvePixel<false>(p, c, s1, s2, n, hv, res);
+    fromYcc(res, io.o0[x], io.o1[x], io.o2[x]);
+}
+
+// Per-thread scratch: three YCoCg rows (ring), reused across chunks and frames.
+thread_local std::vector<float> tYcc;
 
 }  // namespace
 
@@ -72,158 +242,63 @@ void TaaPass::execute(FrameContext& ctx, PassIO& io) {
     const int w = cur.width(), h = cur.height();
     const ImageView* hist = io.hasInput("history") ? &io.input("history") : nullptr;
     const ImageView* len = io.hasInput("historyLength") ? &io.input("historyLength") : nullptr;
+    const Params prm{alpha_, gamma_, clip_, antiFlicker_};
 
-    // The current frame in YCoCg, sanitised, one plane per channel.
-    // Scratch, fully written below: no zero-fill (std::vector would memset 3 planes).
-    std::unique_ptr<float[]> yccBuf(new float[size_t(w) * size_t(h) * 3]);
-    float* const ycc = yccBuf.get();
-    const size_t plane = size_t(w) * size_t(h);
-    ctx.parallelRows(h, [&](int y0, int y1) {
-        for (int y = y0; y < y1; ++y) {
-            const float *r = cur.row(0, y), *g = cur.row(1, y), *b = cur.row(2, y);
-            float* dy = ycc + size_t(y) * w;
-            for (int x = 0; x < w; ++x) {
-                Ycc v = toYcc(sanitise(r[x]), sanitise(g[x]), sanitise(b[x]));
-                dy[x] = v.y;
-                dy[plane + x] = v.co;
-                dy[2 * plane + x] = v.cg;
-            }
-        }
-    });
-
-    const float alpha = alpha_, gamma = gamma_;
-    const bool clip = clip_, antiFlicker = antiFlicker_;
-    // One pixel's TAA from its 3x3 neighbourhood sums. Pure per-lane arithmetic, identical
-    // for the border path (generic) and the interior row loop (vectorised by the compiler).
-    auto resolvePixel = [=](const float c[3], const float s1[3], const float s2[3], float n,
-                            float hv[3], float res[3]) {
-        float mu[3], lo[3], hi[3];
-        for (int ch = 0; ch < 3; ++ch) {
-            const float m1 = s1[ch] / n;
-            const float ext = gamma * std::sqrt(std::max(0.f, s2[ch] / n - m1 * m1));
-            mu[ch] = c[ch] + m1;
-            // The box always contains the current colour: a lone bright pixel is
-            // outside its own mean +- sigma, and clipping it would make TAA dim
-            // every small feature (a static scene must converge to the input).
-            lo[ch] = std::min(mu[ch] - ext, c[ch]);
-            hi[ch] = std::max(mu[ch] + ext, c[ch]);
-        }
-        if (clip) {
-            // Move H towards mu until it is inside the box (Pedersen 2016);
-            // mu lies inside, so t stays in [0, 1]. Selects instead of branches (vectorises);
-            // an unselected quotient may be Inf/NaN and is discarded.
-            float t = 1.f;
-            for (int ch = 0; ch < 3; ++ch) {
-                const float off = hv[ch] - mu[ch];
-                const float tHi = std::min(t, (hi[ch] - mu[ch]) / off);
-                t = hv[ch] > hi[ch] ? tHi : t;
-                const float tLo = std::min(t, (lo[ch] - mu[ch]) / off);
-                t = hv[ch] < lo[ch] ? tLo : t;
-            }
-            for (int ch = 0; ch < 3; ++ch) hv[ch] = mu[ch] + (hv[ch] - mu[ch]) * t;
-        } else {
-            for (int ch = 0; ch < 3; ++ch) hv[ch] = std::clamp(hv[ch], lo[ch], hi[ch]);
-        }
-        float wc = alpha, wh = 1.f - alpha;
-        if (antiFlicker) {
-            wc /= 1.f + std::max(0.f, c[0]);
-            wh /= 1.f + std::max(0.f, hv[0]);
-        }
-        const float sum = wc + wh;
-        const bool pos = sum > 0.f;
-        const float wcn = wc / sum, whn = wh / sum;
-        wc = pos ? wcn : 1.f;
-        wh = pos ? whn : 0.f;
-        for (int ch = 0; ch < 3; ++ch) res[ch] = wc * c[ch] + wh * hv[ch];
-    };
-
-    ctx.parallelRows(h, [&](int y0, int y1) {
-        for (int y = y0; y < y1; ++y) {
-            const float *cr = cur.row(0, y), *cg = cur.row(1, y), *cb = cur.row(2, y);
-            float *o0 = out.row(0, y), *o1 = out.row(1, y), *o2 = out.row(2, y);
-            if (!hist) {  // no history: exactly the current colour
-                for (int x = 0; x < w; ++x) {
-                    o0[x] = sanitise(cr[x]);
-                    o1[x] = sanitise(cg[x]);
-                    o2[x] = sanitise(cb[x]);
-                }
-                continue;
-            }
-            const int ya = std::max(0, y - 1), yb = std::min(h - 1, y + 1);
-            const float* lenRow = len ? len->row(0, y) : nullptr;
-            const float *hr = hist->row(0, y), *hg = hist->row(1, y), *hb = hist->row(2, y);
-            // Generic pixel (image borders): clamped 3x3 window.
-            auto generic = [&](int x) {
-                const size_t i = size_t(y) * w + x;
-                const float c[3] = {ycc[i], ycc[plane + i], ycc[2 * plane + i]};
-                const bool valid = (!lenRow || lenRow[x] > 0.f) && std::isfinite(hr[x]) &&
-                                   std::isfinite(hg[x]) && std::isfinite(hb[x]);
-                if (!valid) {  // disoccluded: exactly the current colour
-                    o0[x] = sanitise(cr[x]);
-                    o1[x] = sanitise(cg[x]);
-                    o2[x] = sanitise(cb[x]);
-                    return;
-                }
-                Ycc v = toYcc(sanitise(hr[x]), sanitise(hg[x]), sanitise(hb[x]));
-                float hv[3] = {v.y, v.co, v.cg}, res[3];
-                // 3x3 mean and standard deviation, shifted by the centre for precision.
-                const int xa = std::max(0, x - 1), xb = std::min(w - 1, x + 1);
-                const float n = float((yb - ya + 1) * (xb - xa + 1));
-                float s1[3], s2[3];
+    ctx.parallelRows(h, [&](int ya, int yb) {
+        if (!hist) {  // no history: exactly the current colour
+            for (int y = ya; y < yb; ++y)
                 for (int ch = 0; ch < 3; ++ch) {
-                    const float* p = ycc + size_t(ch) * plane;
-                    float a1 = 0, a2 = 0;
-                    for (int yy = ya; yy <= yb; ++yy)
-                        for (int xx = xa; xx <= xb; ++xx) {
-                            float d = p[size_t(yy) * w + xx] - c[ch];
-                            a1 += d;
-                            a2 += d * d;
-                        }
-                    s1[ch] = a1;
-                    s2[ch] = a2;
+                    const float* s = cur.row(ch, y);
+                    float* d = out.row(ch, y);
+                    for (int x = 0; x < w; ++x) d[x] = sanitise(s[x]);
                 }
-                resolvePixel(c, s1, s2, n, hv, res);
-                fromYcc(res, o0[x], o1[x], o2[x]);
-            };
-            if (y == 0 || y == h - 1 || w < 3) {
-                for (int x = 0; x < w; ++x) generic(x);
-                continue;
-            }
-            generic(0);
-            // Interior: the same arithmetic in the same order with a fixed 3x3 window and no
-            // branches, so the compiler vectorises it across x.
-            const float* rows[3][3];
+            return;
+        }
+        // YCoCg of rows y-1, y, y+1 in a ring of three row slots (each chunk converts its
+        // rows and the two beside it: no full-frame buffer).
+        std::vector<float>& ring = tYcc;
+        if (ring.size() < size_t(w) * 10) ring.resize(size_t(w) * 10);
+        float* ones = ring.data() + size_t(w) * 9;  // the history length when not fed
+        std::fill(ones, ones + w, 1.f);
+        auto slot = [&](int row, int ch) { return ring.data() + (size_t(row % 3) * 3 + ch) * w; };
+        auto convert = [&](int row) {
+            yccRow(w, cur.row(0, row), cur.row(1, row), cur.row(2, row), slot(row, 0), slot(row, 1),
+                   slot(row, 2));
+        };
+        if (ya > 0) convert(ya - 1);
+        convert(ya);
+        for (int y = ya; y < yb; ++y) {
+            if (y + 1 < h) convert(y + 1);
+            const int ra = std::max(0, y - 1), rb = std::min(h - 1, y + 1);
+            RowIo r;
             for (int ch = 0; ch < 3; ++ch)
-                for (int r = 0; r < 3; ++r)
-                    rows[ch][r] = ycc + size_t(ch) * plane + size_t(y - 1 + r) * w;
-            for (int x = 1; x < w - 1; ++x) {
-                float c[3], s1[3], s2[3];
-                for (int ch = 0; ch < 3; ++ch) {
-                    c[ch] = rows[ch][1][x];
-                    float a1 = 0, a2 = 0;
-                    for (int r = 0; r < 3; ++r)
-                        for (int k = -1; k <= 1; ++k) {
-                            float d = rows[ch][r][x + k] - c[ch];
-                            a1 += d;
-                            a2 += d * d;
-                        }
-                    s1[ch] = a1;
-                    s2[ch] = a2;
+                for (int k = 0; k < 3; ++k) {
+                    const int row = y - 1 + k;
+                    r.ycc[ch][k] = row >= ra && row <= rb ? slot(row, ch) : nullptr;
                 }
-                const bool valid = (!lenRow || lenRow[x] > 0.f) &&
-                                   std::fabs(hr[x]) <= std::numeric_limits<float>::max() &&
-                                   std::fabs(hg[x]) <= std::numeric_limits<float>::max() &&
-                                   std::fabs(hb[x]) <= std::numeric_limits<float>::max();
-                Ycc v = toYcc(sanitise(hr[x]), sanitise(hg[x]), sanitise(hb[x]));
-                float hv[3] = {v.y, v.co, v.cg}, res[3];
-                resolvePixel(c, s1, s2, 9.f, hv, res);
-                float r, g, b;
-                fromYcc(res, r, g, b);
-                o0[x] = valid ? r : sanitise(cr[x]);
-                o1[x] = valid ? g : sanitise(cg[x]);
-                o2[x] = valid ? b : sanitise(cb[x]);
+            r.cr = cur.row(0, y);
+            r.cg = cur.row(1, y);
+            r.cb = cur.row(2, y);
+            r.hr = hist->row(0, y);
+            r.hg = hist->row(1, y);
+            r.hb = hist->row(2, y);
+            r.len = len ? len->row(0, y) : nullptr;
+            r.o0 = out.row(0, y);
+            r.o1 = out.row(1, y);
+            r.o2 = out.row(2, y);
+            if (y == 0 || y == h - 1 || w < 3) {
+                for (int x = 0; x < w; ++x) borderPixel(x, w, ra, rb, y, r, prm);
+                continue;
             }
-            generic(w - 1);
+            borderPixel(0, w, ra, rb, y, r, prm);
+            if (!r.len) r.len = ones;  // 1 > 0: valid, as without the input
+            if (prm.clip)
+                prm.antiFlicker ? interiorRow<true, true>(w, r, prm)
+                                : interiorRow<true, false>(w, r, prm);
+            else
+                prm.antiFlicker ? interiorRow<false, true>(w, r, prm)
+                                : interiorRow<false, false>(w, r, prm);
+            borderPixel(w - 1, w, ra, rb, y, r, prm);
         }
     });
 }

@@ -1,0 +1,138 @@
+// Equivalence of the optimised TAA pass with the plain scalar reference (TaaReference.h) on
+// random and extreme inputs, every parameter combination and 1-3 threads. Tolerance: exact
+// (0 ulp, bitwise identical floats including the sign of zero).
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <limits>
+#include <random>
+#include <string>
+
+#include "TaaPass.h"
+#include "TaaReference.h"
+#include "kestrel/testing/PassHarness.h"
+
+using namespace kestrel;
+using namespace kestrel::passes;
+using kestrel::testing::PassHarness;
+
+namespace {
+
+struct Inputs {
+    Image cur, hist, len;
+};
+
+Inputs randomInputs(int w, int h, unsigned seed, float extremeFraction) {
+    Inputs in{Image(w, h, Format::Float3), Image(w, h, Format::Float3), Image(w, h, Format::Float)};
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(0.f, 1.f);
+    const float vals[] = {std::numeric_limits<float>::quiet_NaN(),
+                          std::numeric_limits<float>::infinity(),
+                          -std::numeric_limits<float>::infinity(),
+                          1e30f,
+                          -1e30f,
+                          1e18f,
+                          std::numeric_limits<float>::max(),
+                          0.f,
+                          -0.f,
+                          -1.f,
+                          std::numeric_limits<float>::denorm_min(),
+                          -3e-39f,
+                          1e-30f,
+                          65504.f};
+    constexpr int kVals = int(sizeof(vals) / sizeof(vals[0]));
+    auto value = [&](float scale) {
+        if (u(rng) < extremeFraction) return vals[int(u(rng) * kVals) % kVals];
+        return scale * u(rng) * u(rng) * (u(rng) < 0.05f ? 50.f : 1.f);  // HDR-ish, fireflies
+    };
+    for (int c = 0; c < 3; ++c)
+        for (size_t i = 0; i < in.cur.extent().pixels(); ++i) {
+            in.cur.channel(c)[i] = value(2.f);
+            in.hist.channel(c)[i] = value(2.f);
+        }
+    for (size_t i = 0; i < in.len.extent().pixels(); ++i) {
+        const float r = u(rng);
+        in.len.channel(0)[i] = r < 0.1f ? 0.f : r < 0.12f ? -1.f : r < 0.13f ? NAN : 1.f;
+    }
+    return in;
+}
+
+::testing::AssertionResult sameBits(const Image& a, const Image& b) {
+    for (int c = 0; c < 3; ++c)
+        for (int y = 0; y < a.height(); ++y)
+            for (int x = 0; x < a.width(); ++x)
+                if (std::memcmp(&a.at(c, x, y), &b.at(c, x, y), sizeof(float)) != 0)
+                    return ::testing::AssertionFailure()
+                           << "channel " << c << " pixel (" << x << ", " << y << "): pass "
+                           << a.at(c, x, y) << " reference " << b.at(c, x, y);
+    return ::testing::AssertionSuccess();
+}
+
+void expectEquivalent(const Inputs& in, bool withHist, bool withLen, const taaref::Params& p,
+                      int threads, const std::string& what) {
+    SCOPED_TRACE(what + " hist " + std::to_string(withHist) + " len " + std::to_string(withLen) +
+                 " alpha " + std::to_string(p.alpha) + " gamma " + std::to_string(p.gamma) +
+                 " clip " + std::to_string(p.clip) + " antiFlicker " +
+                 std::to_string(p.antiFlicker) + " threads " + std::to_string(threads));
+    auto h = PassHarness::make<TaaPass>(in.cur.extent(),
+                                        {{"alpha", double(p.alpha)},
+                                         {"gamma", double(p.gamma)},
+                                         {"mode", std::string(p.clip ? "clip" : "clamp")},
+                                         {"antiFlicker", p.antiFlicker}},
+                                        threads);
+    h.bind("color", in.cur);
+    if (withHist) h.bind("history", in.hist);
+    if (withLen) h.bind("historyLength", in.len);
+    h.run();
+    const Image ref =
+        taaref::taa(in.cur, withHist ? &in.hist : nullptr, withLen ? &in.len : nullptr, p);
+    EXPECT_TRUE(sameBits(h.out("color"), ref));
+}
+
+void expectEquivalentAll(const Inputs& in, const std::string& what) {
+    for (bool clip : {true, false})
+        for (bool anti : {true, false})
+            for (int threads : {1, 2, 3}) {
+                taaref::Params p;
+                p.clip = clip;
+                p.antiFlicker = anti;
+                expectEquivalent(in, true, true, p, threads, what);
+            }
+    taaref::Params p;
+    expectEquivalent(in, true, false, p, 2, what);
+    expectEquivalent(in, false, false, p, 2, what);
+    expectEquivalent(in, false, true, p, 2, what);
+    for (float alpha : {0.f, 1.f, 0.37f})
+        for (float gamma : {0.f, 100.f, 2.5f}) {
+            p.alpha = alpha;
+            p.gamma = gamma;
+            expectEquivalent(in, true, true, p, 2, what);
+        }
+}
+
+}  // namespace
+
+TEST(TaaEquivalence, RandomInputs) {
+    expectEquivalentAll(randomInputs(97, 61, 1, 0.f), "random");
+    expectEquivalentAll(randomInputs(64, 32, 2, 0.f), "random 64x32");
+}
+
+TEST(TaaEquivalence, ExtremeInputs) {
+    expectEquivalentAll(randomInputs(53, 37, 3, 0.05f), "extremes 5%");
+    expectEquivalentAll(randomInputs(41, 29, 4, 0.5f), "extremes 50%");
+}
+
+TEST(TaaEquivalence, ZerosAndDenormals) {
+    Inputs in = randomInputs(33, 17, 5, 0.f);
+    in.cur.fill(0.f);
+    expectEquivalentAll(in, "zero colour");
+    in.cur.fill(std::numeric_limits<float>::denorm_min());
+    in.hist.fill(-std::numeric_limits<float>::denorm_min());
+    expectEquivalentAll(in, "denormals");
+}
+
+TEST(TaaEquivalence, TinyImages) {
+    for (auto [w, h] : {std::pair{1, 1}, {1, 5}, {7, 1}, {2, 2}, {3, 3}, {2, 9}, {9, 2}})
+        expectEquivalentAll(randomInputs(w, h, 6, 0.1f),
+                            std::to_string(w) + "x" + std::to_string(h));
+}
