@@ -54,9 +54,11 @@ ReprojectionPass::ReprojectionPass(const ParamValues& p)
 void ReprojectionPass::resolve(ResolveContext& rc) {
     if (!rc.isBound("prevColor")) rc.setAbsent("color", "prevColor is not connected");
     if (!rc.isBound("prevMoments")) rc.setAbsent("moments", "prevMoments is not connected");
-    if (rc.isBound("motion"))
+    if (rc.isBound("motion")) {
         rc.note("reprojecting with motion vectors");
-    else if (rc.isBound("position"))
+        // World positions serve only the matrix path: not read, so the loader skips them.
+        if (rc.isBound("position")) rc.ignoreInput("position", "motion vectors are given");
+    } else if (rc.isBound("position"))
         rc.note("reprojecting with world positions and matrices");
     else
         rc.note("no motion and no position: identity reprojection (static camera assumed)");
