@@ -2,6 +2,10 @@
 
 #include <kestrel/PixelMath.h>
 
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <type_traits>
 #include <vector>
 
 using namespace kestrel;
@@ -36,6 +40,142 @@ TemporalAccumulationPass::TemporalAccumulationPass(const ParamValues& p)
       maxHistory_(p.getFloat("maxHistoryLength")),
       fireflySigma_(p.getFloat("fireflySigma")) {}
 
+namespace {
+
+// Floating-point evaluation. The plugin is compiled with -ffp-contract=off and every fused
+// multiply-add is spelled out with std::fma: the arithmetic is exactly the one the compiler
+// generated for the previous implementation, so results are bit-identical to it, and they no
+// longer depend on what a compiler version chooses to contract.
+
+// Luminance of the sanitised colour, one row: products rounded, summed left to right. Frames
+// narrower than 4 pixels fuse the first product into the first sum (the previous build's
+// scalar loop for short rows did; its vectorised loop did not).
+void luminanceRow(int w, const float* __restrict r, const float* __restrict g,
+                  const float* __restrict b, float* __restrict l) {
+    if (w < 4) {
+        for (int x = 0; x < w; ++x)
+            l[x] = std::fma(0.2126f, px::sanitize(r[x]), 0.7152f * px::sanitize(g[x])) +
+                   0.0722f * px::sanitize(b[x]);
+        return;
+    }
+    for (int x = 0; x < w; ++x)
+        l[x] = 0.2126f * px::sanitize(r[x]) + 0.7152f * px::sanitize(g[x]) +
+               0.0722f * px::sanitize(b[x]);
+}
+
+struct Params {
+    float alpha, momentsAlpha, cap, k;
+};
+
+/// One row's planes. Inputs that are not fed point at neutral rows (see execute); outputs that
+/// are not consumed at scratch rows.
+struct Row {
+    const float *c0, *c1, *c2;    ///< colour
+    const float *p0, *p1, *p2;    ///< reprojected colour history
+    const float *pm0, *pm1, *pl;  ///< reprojected moments, history length
+    const float *lu, *lc, *ld;    ///< luminance of rows y-1, y, y+1 (row y outside the image)
+    bool up, down;                ///< whether rows y-1, y+1 exist
+    float *o0, *o1, *o2, *om0, *om1, *oh, *ov;
+};
+
+// The per-pixel formula after the firefly neighbourhood statistics: s1, s2 = sum of the n
+// neighbours' luminance and of its squares (n > 0), or bound0 = 1e30 when there are none.
+// HasC, HasM: prevColor, prevMoments fed (and prevHistoryLength).
+template <bool HasC, bool HasM>
+__attribute__((always_inline)) inline void pixel(Params p, const Row& r, int x, float s1, float s2,
+                                                 float n, bool noNeighbours) {
+    // Parameters as values (std::max/min return references: no loads under a mask).
+    const float alpha = p.alpha, momentsAlpha = p.momentsAlpha, cap = p.cap, k = p.k;
+    float c0 = px::sanitize(r.c0[x]), c1 = px::sanitize(r.c1[x]), c2 = px::sanitize(r.c2[x]);
+    float l = r.lc[x];
+    const float hRaw = r.pl[x];
+    const float hPrev = px::sanitizePositive(hRaw, 1e6f);  // 0 without a history length
+    // hPrev > 0, from the raw value (the same set: sanitizePositive keeps exactly the positive
+    // finite values positive); a comparison of the input keeps the mask vectorisable.
+    const bool valid = (hRaw > 0.f) & (hRaw <= std::numeric_limits<float>::max());
+    const bool useM = HasM && valid;
+    const float pm0 = px::sanitize(r.pm0[x]), pm1 = px::sanitizePositive(r.pm1[x], 1e32f);
+    const float m1p = useM ? pm0 : 0.f, m2p = useM ? pm1 : 0.f;
+    // Firefly clamp: against the mean + k sigma of the 8 neighbours (the centre excluded) and,
+    // where the history is valid, of the history's own moments. Selects, no branches.
+    const float mu = s1 / n;
+    const float nb = std::fma(std::sqrt(std::max(0.f, std::fma(-mu, mu, s2 / n))), k, mu);
+    const float hb = std::fma(std::sqrt(std::max(0.f, std::fma(-m1p, m1p, m2p))), k, m1p);
+    float bound = noNeighbours ? 1e30f : nb;
+    bound = useM ? std::max(bound, hb) : bound;
+    const bool clamp = (k > 0.f) & (l > 0.f) & (l > bound);
+    const float bz = std::max(bound, 0.f), s = bz / l;
+    c0 = clamp ? c0 * s : c0;
+    c1 = clamp ? c1 * s : c1;
+    c2 = clamp ? c2 * s : c2;
+    l = clamp ? bz : l;
+    const float hl = valid ? std::min(cap, hPrev + 1.f) : 1.f;
+    const float ac = std::max(alpha, 1.f / hl), am = std::max(momentsAlpha, 1.f / hl);
+    const bool useC = HasC && valid;
+    const float q0 = px::sanitize(r.p0[x]), q1 = px::sanitize(r.p1[x]), q2 = px::sanitize(r.p2[x]);
+    r.o0[x] = useC ? std::fma(ac, c0 - q0, q0) : c0;
+    r.o1[x] = useC ? std::fma(ac, c1 - q1, q1) : c1;
+    r.o2[x] = useC ? std::fma(ac, c2 - q2, q2) : c2;
+    const float l2 = l * l;
+    const float m1 = useM ? std::fma(am, l - m1p, m1p) : l;
+    const float m2 = useM ? std::fma(am, l2 - m2p, m2p) : l2;
+    r.om0[x] = m1;
+    r.om1[x] = m2;
+    r.oh[x] = hl;
+    r.ov[x] = std::max(0.f, std::fma(-m1, m1, m2));
+}
+
+// Pixels x in [1, w - 1) of a row with rows above and below: all 8 neighbours exist, summed in
+// a fixed order (row by row, left to right) with no bounds checks; vectorised across x.
+template <bool HasC, bool HasM>
+__attribute__((noinline)) void interiorRow(int w, Params p, const Row& row) {
+    const Row r = row;  // a local copy: the row pointers stay in registers
+    const float *lu = r.lu, *lc = r.lc, *ld = r.ld;
+#pragma GCC ivdep
+    for (int x = 1; x < w - 1; ++x) {
+        float s1 = 0.f, s2 = 0.f;
+        auto add = [&](float q) __attribute__((always_inline)) {
+            s1 += q;
+            s2 = std::fma(q, q, s2);
+        };
+        add(lu[x - 1]);
+        add(lu[x]);
+        add(lu[x + 1]);
+        add(lc[x - 1]);
+        add(lc[x + 1]);
+        add(ld[x - 1]);
+        add(ld[x]);
+        add(ld[x + 1]);
+        pixel<HasC, HasM>(p, r, x, s1, s2, 8.f, false);
+    }
+}
+
+// A pixel at the image border: the neighbours that exist.
+template <bool HasC, bool HasM>
+void borderPixel(int w, int x, const Params& p, const Row& r) {
+    float s1 = 0.f, s2 = 0.f;
+    int n = 0;
+    const float* rows[3] = {r.lu, r.lc, r.ld};
+    const bool exists[3] = {r.up, true, r.down};
+    for (int j = 0; j < 3; ++j) {
+        if (!exists[j]) continue;
+        for (int i = -1; i <= 1; ++i) {
+            const int xx = x + i;
+            if ((i == 0 && j == 1) || xx < 0 || xx >= w) continue;
+            const float q = rows[j][xx];
+            s1 += q;
+            s2 = std::fma(q, q, s2);
+            ++n;
+        }
+    }
+    pixel<HasC, HasM>(p, r, x, s1, s2, float(std::max(n, 1)), n == 0);
+}
+
+// Per-thread scratch: three luminance rows (ring), neutral input rows and output sinks.
+thread_local std::vector<float> tScratch;
+
+}  // namespace
+
 void TemporalAccumulationPass::execute(FrameContext& ctx, PassIO& io) {
     const int w = ctx.extent.width, h = ctx.extent.height;
     const ImageView& color = io.input("color");
@@ -48,88 +188,64 @@ void TemporalAccumulationPass::execute(FrameContext& ctx, PassIO& io) {
     const ImageView* outM = io.hasOutput("moments") ? &io.output("moments") : nullptr;
     const ImageView* outH = io.hasOutput("historyLength") ? &io.output("historyLength") : nullptr;
     const ImageView* outV = io.hasOutput("variance") ? &io.output("variance") : nullptr;
+    const Params prm{alpha_, momentsAlpha_, maxHistory_, fireflySigma_};
+    const bool hasC = prevC != nullptr, hasM = prevM != nullptr;
 
-    // Sanitised luminance of the current frame, for the firefly clamp's neighbourhood.
-    std::vector<float> lum(ctx.extent.pixels());
-    ctx.parallelRows(h, [&](int y0, int y1) {
-        for (int y = y0; y < y1; ++y) {
-            const float *r = color.row(0, y), *g = color.row(1, y), *b = color.row(2, y);
-            float* l = lum.data() + size_t(y) * size_t(w);
-            for (int x = 0; x < w; ++x)
-                l[x] = px::luminance(px::sanitize(r[x]), px::sanitize(g[x]), px::sanitize(b[x]));
-        }
-    });
-
-    const float k = fireflySigma_, cap = maxHistory_;
-    ctx.parallelRows(h, [&](int y0, int y1) {
-        for (int y = y0; y < y1; ++y) {
-            const float* lrow = lum.data() + size_t(y) * size_t(w);
-            for (int x = 0; x < w; ++x) {
-                float c[3] = {px::sanitize(color.at(0, x, y)), px::sanitize(color.at(1, x, y)),
-                              px::sanitize(color.at(2, x, y))};
-                float l = lrow[x];
-                const float hPrev = prevH ? px::sanitizePositive(prevH->at(0, x, y), 1e6f) : 0.f;
-                const bool valid = hPrev > 0.f;
-                float m1p = 0.f, m2p = 0.f;
-                if (valid && prevM) {
-                    m1p = px::sanitize(prevM->at(0, x, y));
-                    m2p = px::sanitizePositive(prevM->at(1, x, y), 1e32f);
+    ctx.parallelRows(h, [&](int ya, int yb) {
+        // Scratch rows: 3 luminance (ring), 1 zeros (inputs not fed: history length 0 makes
+        // every pixel history-less, colour and moments are then not used), 4 output sinks.
+        std::vector<float>& sc = tScratch;
+        if (sc.size() < size_t(w) * 8) sc.resize(size_t(w) * 8);
+        auto lumRow = [&](int y) { return sc.data() + size_t(y % 3) * w; };
+        float* zeros = sc.data() + size_t(3) * w;
+        std::fill(zeros, zeros + w, 0.f);
+        float* sink[4] = {zeros + w, zeros + 2 * size_t(w), zeros + 3 * size_t(w),
+                          zeros + 4 * size_t(w)};
+        auto convert = [&](int y) {
+            luminanceRow(w, color.row(0, y), color.row(1, y), color.row(2, y), lumRow(y));
+        };
+        if (ya > 0) convert(ya - 1);
+        convert(ya);
+        for (int y = ya; y < yb; ++y) {
+            if (y + 1 < h) convert(y + 1);
+            Row r;
+            r.c0 = color.row(0, y);
+            r.c1 = color.row(1, y);
+            r.c2 = color.row(2, y);
+            r.p0 = prevC ? prevC->row(0, y) : zeros;
+            r.p1 = prevC ? prevC->row(1, y) : zeros;
+            r.p2 = prevC ? prevC->row(2, y) : zeros;
+            r.pm0 = prevM ? prevM->row(0, y) : zeros;
+            r.pm1 = prevM ? prevM->row(1, y) : zeros;
+            r.pl = prevH ? prevH->row(0, y) : zeros;
+            r.up = y > 0;
+            r.down = y + 1 < h;
+            r.lu = lumRow(r.up ? y - 1 : y);
+            r.lc = lumRow(y);
+            r.ld = lumRow(r.down ? y + 1 : y);
+            r.o0 = outC.row(0, y);
+            r.o1 = outC.row(1, y);
+            r.o2 = outC.row(2, y);
+            r.om0 = outM ? outM->row(0, y) : sink[0];
+            r.om1 = outM ? outM->row(1, y) : sink[1];
+            r.oh = outH ? outH->row(0, y) : sink[2];
+            r.ov = outV ? outV->row(0, y) : sink[3];
+            auto run = [&](auto hasC, auto hasM) {
+                constexpr bool C = decltype(hasC)::value, M = decltype(hasM)::value;
+                if (y == 0 || y == h - 1 || w < 3) {
+                    for (int x = 0; x < w; ++x) borderPixel<C, M>(w, x, prm, r);
+                    return;
                 }
-                if (k > 0.f && l > 0.f) {
-                    // Neighbourhood statistics exclude the centre: a lone firefly cannot raise
-                    // its own bound (design.md section 7, lesson 3).
-                    float s1 = 0.f, s2 = 0.f;
-                    int n = 0;
-                    for (int j = -1; j <= 1; ++j) {
-                        const int yy = y + j;
-                        if (yy < 0 || yy >= h) continue;
-                        const float* lr = lum.data() + size_t(yy) * size_t(w);
-                        for (int i = -1; i <= 1; ++i) {
-                            const int xx = x + i;
-                            if ((i == 0 && j == 0) || xx < 0 || xx >= w) continue;
-                            s1 += lr[xx];
-                            s2 += lr[xx] * lr[xx];
-                            ++n;
-                        }
-                    }
-                    float bound = 1e30f;  // no neighbours (1x1 image): nothing to compare with
-                    if (n > 0) {
-                        const float mu = s1 / float(n);
-                        bound = mu + k * std::sqrt(std::max(0.f, s2 / float(n) - mu * mu));
-                    }
-                    // Only an outlier against its own history as well is clamped: fewer false
-                    // positives in sparse 1-spp regions where every lit sample looks isolated.
-                    if (valid && prevM)
-                        bound =
-                            std::max(bound, m1p + k * std::sqrt(std::max(0.f, m2p - m1p * m1p)));
-                    if (l > bound) {
-                        const float s = std::max(bound, 0.f) / l;
-                        for (float& v : c) v *= s;
-                        l = std::max(bound, 0.f);
-                    }
-                }
-                const float hl = valid ? std::min(cap, hPrev + 1.f) : 1.f;
-                const float ac = std::max(alpha_, 1.f / hl), am = std::max(momentsAlpha_, 1.f / hl);
-                for (int ch = 0; ch < 3; ++ch) {
-                    float v = c[ch];
-                    if (valid && prevC) {
-                        const float p = px::sanitize(prevC->at(ch, x, y));
-                        v = p + ac * (v - p);
-                    }
-                    outC.at(ch, x, y) = v;
-                }
-                float m1 = l, m2 = l * l;
-                if (valid && prevM) {
-                    m1 = m1p + am * (m1 - m1p);
-                    m2 = m2p + am * (m2 - m2p);
-                }
-                if (outM) {
-                    outM->at(0, x, y) = m1;
-                    outM->at(1, x, y) = m2;
-                }
-                if (outH) outH->at(0, x, y) = hl;
-                if (outV) outV->at(0, x, y) = std::max(0.f, m2 - m1 * m1);
-            }
+                borderPixel<C, M>(w, 0, prm, r);
+                interiorRow<C, M>(w, prm, r);
+                borderPixel<C, M>(w, w - 1, prm, r);
+            };
+            using T = std::true_type;
+            using F = std::false_type;
+            if (hasC)
+                hasM ? run(T{}, T{}) : run(T{}, F{});
+            else
+                hasM ? run(F{}, T{}) : run(F{}, F{});
         }
     });
 }
