@@ -7,7 +7,8 @@ using namespace kestrel;
 PassDesc DemodulatePass::describe() {
     PassDesc d("Demodulate",
                "Divides the emission-free radiance by the albedo: illumination = (color - emission)"
-               " / albedo (channels with albedo below albedoFloor are not demodulated). Identity when neither albedo nor emission is bound.");
+               " / albedo (channels with albedo below albedoFloor are not demodulated). Identity "
+               "when neither albedo nor emission is bound.");
     d.input("color", Format::Float3, "noisy radiance")
         .optionalInput("albedo", Format::Float3, "surface albedo to divide out")
         .optionalInput("emission", Format::Float3, "emitted radiance to subtract first")
@@ -26,6 +27,23 @@ void DemodulatePass::resolve(ResolveContext& rc) {
     }
 }
 
+namespace {
+
+// One channel of one row: (colour - emission) / albedo, sanitised. A, E: albedo, emission fed
+// (compile-time, so the loop is branch-free and vectorises).
+template <bool A, bool E>
+void demodulateRow(int w, const float* __restrict src, const float* __restrict a,
+                   const float* __restrict e, float* __restrict dst, float floor) {
+    for (int x = 0; x < w; ++x) {
+        float v = px::sanitize(src[x]);
+        if constexpr (E) v -= px::sanitize(e[x]);
+        if constexpr (A) v /= px::demodulationAlbedo(a[x], floor);
+        dst[x] = px::sanitize(v);
+    }
+}
+
+}  // namespace
+
 void DemodulatePass::execute(FrameContext& ctx, PassIO& io) {
     const ImageView& color = io.input("color");
     const ImageView* albedo = io.hasInput("albedo") ? &io.input("albedo") : nullptr;
@@ -34,19 +52,12 @@ void DemodulatePass::execute(FrameContext& ctx, PassIO& io) {
     // A zero floor would divide by zero on black albedo: keep the divisor a normal float.
     const float floor = std::max(albedoFloor_, 1e-8f);
     const int w = ctx.extent.width;
+    auto row = albedo ? (emission ? demodulateRow<true, true> : demodulateRow<true, false>)
+                      : (emission ? demodulateRow<false, true> : demodulateRow<false, false>);
     ctx.parallelRows(ctx.extent.height, [&](int y0, int y1) {
         for (int y = y0; y < y1; ++y)
-            for (int c = 0; c < 3; ++c) {
-                const float* src = color.row(c, y);
-                const float* a = albedo ? albedo->row(c, y) : nullptr;
-                const float* e = emission ? emission->row(c, y) : nullptr;
-                float* dst = out.row(c, y);
-                for (int x = 0; x < w; ++x) {
-                    float v = px::sanitize(src[x]);
-                    if (e) v -= px::sanitize(e[x]);
-                    if (a) v /= px::demodulationAlbedo(a[x], floor);
-                    dst[x] = px::sanitize(v);
-                }
-            }
+            for (int c = 0; c < 3; ++c)
+                row(w, color.row(c, y), albedo ? albedo->row(c, y) : nullptr,
+                    emission ? emission->row(c, y) : nullptr, out.row(c, y), floor);
     });
 }

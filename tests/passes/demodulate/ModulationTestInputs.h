@@ -1,0 +1,43 @@
+#pragma once
+// Random and extreme Float3 images for the Demodulate / Modulate equivalence tests and
+// benchmarks.
+#include <kestrel/Image.h>
+
+#include <limits>
+#include <random>
+
+namespace modtest {
+
+/// Values in [0, scale) (HDR-ish: squared uniform, a few large), a fraction `extremes` of them
+/// replaced by NaN, +-Inf, huge, zero, negative and denormal values.
+inline kestrel::Image randomImage(int w, int h, unsigned seed, float scale, float extremes) {
+    kestrel::Image im(w, h, kestrel::Format::Float3);
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(0.f, 1.f);
+    const float vals[] = {std::numeric_limits<float>::quiet_NaN(),
+                          std::numeric_limits<float>::infinity(),
+                          -std::numeric_limits<float>::infinity(),
+                          1e30f,
+                          -1e30f,
+                          1e16f,
+                          std::numeric_limits<float>::max(),
+                          0.f,
+                          -0.f,
+                          -1.f,
+                          std::numeric_limits<float>::denorm_min(),
+                          -3e-39f,
+                          1e-30f,
+                          1e-3f,
+                          9.99e-4f,
+                          1e-8f};
+    constexpr int kVals = int(sizeof(vals) / sizeof(vals[0]));
+    for (int c = 0; c < 3; ++c)
+        for (size_t i = 0; i < im.extent().pixels(); ++i) {
+            float v = scale * u(rng) * u(rng) * (u(rng) < 0.02f ? 100.f : 1.f);
+            if (u(rng) < extremes) v = vals[int(u(rng) * kVals) % kVals];
+            im.channel(c)[i] = v;
+        }
+    return im;
+}
+
+}  // namespace modtest

@@ -1,0 +1,42 @@
+// Demodulate at 1920x1080 (colour, albedo and emission bound, as in svgf.json). Reports
+// megapixels per second (wall time: the pass runs on its own pool). Built as
+// `demodulate_bench`, not registered with ctest: run it by hand.
+#include <benchmark/benchmark.h>
+
+#include "DemodulatePass.h"
+#include "ModulationTestInputs.h"
+#include "kestrel/testing/PassHarness.h"
+
+namespace {
+
+using namespace kestrel;
+using kestrel::testing::PassHarness;
+
+constexpr int kW = 1920, kH = 1080;
+
+void BM_Demodulate(benchmark::State& state) {
+    static const Image color = modtest::randomImage(kW, kH, 1, 4.f, 0.f),
+                       albedo = modtest::randomImage(kW, kH, 2, 1.f, 0.f),
+                       emission = modtest::randomImage(kW, kH, 3, 0.1f, 0.f);
+    auto h = PassHarness::make<DemodulatePass>({kW, kH}, {}, int(state.range(0)));
+    h.bind("color", color);
+    h.bind("albedo", albedo);
+    h.bind("emission", emission);
+    h.run();  // allocate the output
+    for (auto _ : state) {
+        h.run();
+        benchmark::DoNotOptimize(h.out("illumination").channel(0)[0]);
+    }
+    state.counters["Mpx/s"] = benchmark::Counter(double(kW) * kH * double(state.iterations()) / 1e6,
+                                                 benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_Demodulate)
+    ->Arg(1)
+    ->Arg(2)
+    ->ArgName("threads")
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();
