@@ -6,7 +6,8 @@ using namespace kestrel;
 
 PassDesc ModulatePass::describe() {
     PassDesc d("Modulate",
-               "Re-applies albedo and emission: color = illumination * albedo (1 below albedoFloor, as Demodulate) +"
+               "Re-applies albedo and emission: color = illumination * albedo (1 below "
+               "albedoFloor, as Demodulate) +"
                " emission + base. Identity when nothing optional is bound.");
     d.input("illumination", Format::Float3, "filtered demodulated illumination")
         .optionalInput("albedo", Format::Float3, "surface albedo to multiply back")
@@ -27,6 +28,34 @@ void ModulatePass::resolve(ResolveContext& rc) {
     }
 }
 
+namespace {
+
+// One channel of one row: illumination * albedo + emission + base, sanitised; products and
+// sums rounded one by one (no fused multiply-add: the plugin is built with
+// -ffp-contract=off). A, E, B: albedo, emission, base fed (compile-time, so the loop is
+// branch-free and vectorises).
+template <bool A, bool E, bool B>
+void modulateRow(int w, const float* __restrict src, const float* __restrict a,
+                 const float* __restrict e, const float* __restrict b, float* __restrict dst,
+                 float floor) {
+    for (int x = 0; x < w; ++x) {
+        float v = px::sanitize(src[x]);
+        if constexpr (A) v *= px::demodulationAlbedo(a[x], floor);
+        if constexpr (E) v += px::sanitize(e[x]);
+        if constexpr (B) v += px::sanitize(b[x]);
+        dst[x] = px::sanitize(v);
+    }
+}
+
+using RowFn = void (*)(int, const float*, const float*, const float*, const float*, float*, float);
+
+template <bool A, bool E>
+RowFn pick(bool b) {
+    return b ? modulateRow<A, E, true> : modulateRow<A, E, false>;
+}
+
+}  // namespace
+
 void ModulatePass::execute(FrameContext& ctx, PassIO& io) {
     const ImageView& illum = io.input("illumination");
     const ImageView* albedo = io.hasInput("albedo") ? &io.input("albedo") : nullptr;
@@ -35,21 +64,13 @@ void ModulatePass::execute(FrameContext& ctx, PassIO& io) {
     const ImageView& out = io.output("color");
     const float floor = std::max(albedoFloor_, 1e-8f);  // same divisor as Demodulate
     const int w = ctx.extent.width;
+    const RowFn row = albedo ? (emission ? pick<true, true>(base) : pick<true, false>(base))
+                             : (emission ? pick<false, true>(base) : pick<false, false>(base));
     ctx.parallelRows(ctx.extent.height, [&](int y0, int y1) {
         for (int y = y0; y < y1; ++y)
-            for (int c = 0; c < 3; ++c) {
-                const float* src = illum.row(c, y);
-                const float* a = albedo ? albedo->row(c, y) : nullptr;
-                const float* e = emission ? emission->row(c, y) : nullptr;
-                const float* b = base ? base->row(c, y) : nullptr;
-                float* dst = out.row(c, y);
-                for (int x = 0; x < w; ++x) {
-                    float v = px::sanitize(src[x]);
-                    if (a) v *= px::demodulationAlbedo(a[x], floor);
-                    if (e) v += px::sanitize(e[x]);
-                    if (b) v += px::sanitize(b[x]);
-                    dst[x] = px::sanitize(v);
-                }
-            }
+            for (int c = 0; c < 3; ++c)
+                row(w, illum.row(c, y), albedo ? albedo->row(c, y) : nullptr,
+                    emission ? emission->row(c, y) : nullptr, base ? base->row(c, y) : nullptr,
+                    out.row(c, y), floor);
     });
 }
