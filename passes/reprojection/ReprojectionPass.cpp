@@ -118,8 +118,9 @@ inline void catmullRomWeights(float t, float w[4]) {
     w[3] = 0.5f * t3 - 0.5f * t2;
 }
 
-// The rows a row of screen-space derivatives reads: depth and the normal's three channels, each
-// at rows y (index 0), y-1 (1) and y+1 (2); absent neighbour rows alias row y and are unused.
+// The rows a row of screen-space derivatives reads: sanitised depth and normal (sanitizeDepth,
+// sanitizeNormal), each at rows y (index 0), y-1 (1) and y+1 (2); absent neighbour rows alias
+// row y and are unused.
 struct GeomRows {
     const float* z[3];
     const float* n[3][3];
@@ -133,20 +134,16 @@ __attribute__((always_inline)) inline void derivativesAt(const GeomRows& g, int 
                                                          float* invN, float* n0, float* n1,
                                                          float* n2) {
     const int xl = L ? x - 1 : x, xr = R ? x + 1 : x;  // an absent side is never used
-    const float zc = px::sanitizeDepth(g.z[0][x]);
-    const float fwZ = std::fabs(px::minAbsDiff(px::sanitizeDepth(g.z[0][xl]), zc,
-                                               px::sanitizeDepth(g.z[0][xr]), L, R)) +
-                      std::fabs(px::minAbsDiff(px::sanitizeDepth(g.z[1][x]), zc,
-                                               px::sanitizeDepth(g.z[2][x]), U, D));
+    const float zc = g.z[0][x];
+    const float fwZ = std::fabs(px::minAbsDiff(g.z[0][xl], zc, g.z[0][xr], L, R)) +
+                      std::fabs(px::minAbsDiff(g.z[1][x], zc, g.z[2][x], U, D));
     float dnx2 = 0, dny2 = 0;
     float nc[3];
     for (int c = 0; c < 3; ++c) {
         const float* const* p = g.n[c];
-        nc[c] = px::sanitizeNormal(p[0][x]);
-        const float gx =
-            px::minAbsDiff(px::sanitizeNormal(p[0][xl]), nc[c], px::sanitizeNormal(p[0][xr]), L, R);
-        const float gy =
-            px::minAbsDiff(px::sanitizeNormal(p[1][x]), nc[c], px::sanitizeNormal(p[2][x]), U, D);
+        nc[c] = p[0][x];
+        const float gx = px::minAbsDiff(p[0][xl], nc[c], p[0][xr], L, R);
+        const float gy = px::minAbsDiff(p[1][x], nc[c], p[2][x], U, D);
         dnx2 += gx * gx;
         dny2 += gy * gy;
     }
@@ -588,7 +585,7 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
         // Row scratch: float rows (derivatives, positions, fractions, kernel weights, output
         // sinks, sanitised previous-frame rows) and int rows (tap offsets, flags, ids, masks).
         // Rows are padded: the stages round runs up to whole vectors (see below).
-        constexpr int kF = 71, kI = 11, kPad = 32;
+        constexpr int kF = 83, kI = 11, kPad = 32;
         const size_t ws = size_t(w) + kPad;
         Scratch& sc = tScratch;
         sc.reserve(ws * kF, ws * kI, size_t(w) * 2);
@@ -628,21 +625,37 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
             for (int c = 0; c < 3; ++c) cs[c][j] = frow(51 + 4 * c + j);
             for (int c = 0; c < 2; ++c) ms[c][j] = frow(63 + 4 * c + j);
         }
+        // This frame's sanitised depth and normal, rows y-1..y+1 in a ring of three slots
+        // (each element sanitised once, not once per derivative that reads it).
+        auto geomSlot = [&](int row, int plane) { return frow(71 + (row % 3) * 4 + plane); };
+        auto sanitizeGeom = [&](int row) {
+            const float* z = depth.row(0, row);
+            float* zo = geomSlot(row, 0);
+            for (int x = 0; x < w; ++x) zo[x] = px::sanitizeDepth(z[x]);
+            for (int c = 0; c < 3; ++c) {
+                const float* n = normal.row(c, row);
+                float* no = geomSlot(row, 1 + c);
+                for (int x = 0; x < w; ++x) no[x] = px::sanitizeNormal(n[x]);
+            }
+        };
+        if (ya > 0) sanitizeGeom(ya - 1);
+        sanitizeGeom(ya);
         uint8_t *brk = sc.b.data(), *redo = brk + w;  // run starts, per-pixel recomputation
         std::fill(zeroIds, zeroIds + w, 0);
 
         for (int y = ya; y < yb; ++y) {
             const bool u = y > 0, d = y + 1 < h;
             const int yu = u ? y - 1 : y, yd = d ? y + 1 : y;  // absent neighbours are not used
+            if (d) sanitizeGeom(y + 1);
             GeomRows g;
             for (int j = 0; j < 3; ++j) {
                 const int yy = j == 0 ? y : j == 1 ? yu : yd;
-                g.z[j] = depth.row(0, yy);
-                for (int c = 0; c < 3; ++c) g.n[c][j] = normal.row(c, yy);
+                g.z[j] = geomSlot(yy, 0);
+                for (int c = 0; c < 3; ++c) g.n[c][j] = geomSlot(yy, 1 + c);
             }
             rowDerivatives(g, u, d, w, rInvZ, rInvN, rn0, rn1, rn2);
             const size_t rowStart = size_t(y) * size_t(w);
-            const float* zRow = depth.row(0, y);
+            const float* zRow = geomSlot(y, 0);  // sanitised (sanitizeDepth is idempotent)
             // Previous-frame position in continuous pixel coordinates (centres at +0.5);
             // rOk holds 0 where the position is unusable (no surface on the matrix path).
             if (motion) {
