@@ -6,6 +6,14 @@
 // do not, so results differ from the scalar ones by a few ulp, never more.
 //
 // Header-only; a pass that includes it links hwy::hwy (the framework itself does not).
+
+// Highway 1.0.3 (Debian 12) tests an undefined macro when it decides whether AVX3_DL (Ice Lake
+// and later: VNNI, VBMI2, ...) is attainable, so a -march=native build on such a CPU picks AVX3_DL
+// as its static target and then refuses it ("best baseline should be included in dynamic
+// targets"). Opting in, as its documentation allows, makes the two agree.
+#ifndef HWY_WANT_AVX3_DL
+#define HWY_WANT_AVX3_DL 1
+#endif
 #include <hwy/highway.h>
 
 #include "kestrel/PixelMath.h"
