@@ -268,31 +268,40 @@ TEST(ATrous, StepLargerThanImageIsIdentity) {
 #include "ATrousReference.h"
 
 namespace {
-void expectATrousEquivalent(int w, int h, int step, int seed, bool extreme, int threads) {
+void expectATrousEquivalent(int w, int h, int step, int seed, bool extreme, int threads,
+                            float sigmaN = 128.f) {
     RandomGBuffer g = randomGBuffer(w, h, seed);
     Image var = scalar(w, h, [&](int x, int y) { return 0.01f + hash01(x, y, seed + 3); });
     if (extreme)
         for (Image* im : {&g.color, &g.depth, &g.normal, &var}) sprinkleExtremes(*im, seed + 11);
     Scene s{clone(g.color), clone(var), clone(g.depth), clone(g.normal), clone(g.ids)};
-    auto run = runATrous(s, {{"step", int64_t(step)}}, threads);
+    auto run = runATrous(s, {{"step", int64_t(step)}, {"sigmaN", double(sigmaN)}}, threads);
     Image refC(g.color.extent(), Format::Float3), refV(g.color.extent(), Format::Float);
-    reference::atrous(
-        {&g.color.view(), &var.view(), &g.depth.view(), &g.normal.view(), &g.ids.view(), step},
-        refC, &refV.view(), 0, h);
+    reference::ATrousInputs in{&g.color.view(),  &var.view(),   &g.depth.view(),
+                               &g.normal.view(), &g.ids.view(), step};
+    in.sigmaN = sigmaN;
+    reference::atrous(in, refC, &refV.view(), 0, h);
     std::string where;
     const double dc = maxScaledDiff(run.out("color"), refC, 1e-3f, &where);
     EXPECT_LE(dc, 1e-3) << "step " << step << " colour " << where;
     const double dv = maxScaledDiff(run.out("variance"), refV, extreme ? 1.f : 1e-6f, &where);
     EXPECT_LE(dv, 1e-3) << "step " << step << " variance " << where;
     EXPECT_TRUE(allFinite(run.out("color")) && allFinite(run.out("variance")));
-    std::printf("step %d%s: worst scaled difference colour %.2g, variance %.2g\n", step,
-                extreme ? " (extreme)" : "", dc, dv);
+    std::printf("step %d sigmaN %g%s: worst scaled difference colour %.2g, variance %.2g\n", step,
+                sigmaN, extreme ? " (extreme)" : "", dc, dv);
 }
 }  // namespace
 
 TEST(ATrous, VectorisedMatchesScalarReferenceOnRandomInputs) {
     // 157 columns: vector blocks, row-wise borders and ragged tails for every step.
     for (int step : {1, 2, 4, 8, 16}) expectATrousEquivalent(157, 41, step, step, false, 1);
+}
+
+TEST(ATrous, VectorisedMatchesScalarReferenceForOtherNormalExponents) {
+    // sigma_n 128 has a kernel of its own (seven squarings); a whole exponent takes powInt, a
+    // fractional one fastLog2/fastExp2, and 0 drops the normal weight.
+    for (float sigmaN : {0.f, 3.f, 10.5f, 64.f})
+        for (int step : {1, 4}) expectATrousEquivalent(157, 41, step, step + 5, false, 1, sigmaN);
 }
 
 TEST(ATrous, BandedFilteringMatchesReferenceAcrossBandSeams) {
