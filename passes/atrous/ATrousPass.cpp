@@ -61,7 +61,7 @@ constexpr float kMinDot = 1e-30f;
 constexpr float kZeroWeight = -1e4f;  // log2 weight penalty: fastExp2 returns exactly 0
 constexpr float kLn2 = 0.693147180559945f;
 
-enum Plane { R, G, B, L, Z, GX, GY, NX, NY, NZ, VAR, INVL, ID, kPlaneCount };
+enum Plane { R, G, B, L, Z, GX, GY, NX, NY, NZ, VAR, INVL, kPlaneCount };
 
 /// Accumulators of one output row.
 struct RowAcc {
@@ -496,9 +496,6 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
                     if (var)
                         copySanitized(var->row(0, y), P[VAR] + o, width,
                                       [](float v) { return px::sanitizePositive(v, 1e32f); });
-                    if (ids)
-                        std::copy_n(ids + size_t(y) * size_t(width), width,
-                                    reinterpret_cast<int32_t*>(P[ID]) + o);
                     lumaRow(P[R] + o, P[G] + o, P[B] + o, P[L] + o, width);
                 }
                 // Pass 2: depth gradient (edge-preserving one-sided differences) and the luminance
@@ -525,7 +522,9 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
                     horizontalInvL(vcol.data(), P[INVL] + o, width, sigmaL);
                 }
                 // Pass 3: the filter itself.
-                const int32_t* bandIds = ids ? reinterpret_cast<const int32_t*>(P[ID]) : nullptr;
+                // Object ids need no sanitising: the kernels read the input's rows in place,
+                // addressed like the band planes (row base first).
+                const int32_t* bandIds = ids ? ids + size_t(base) * size_t(width) : nullptr;
                 auto run = [&](auto id, auto nrm, auto v) {
                     filterRange<decltype(id)::value, decltype(nrm)::value, decltype(v)::value>(
                         y0, y1, width, height, s, P, base, bandIds, outColor, outVar);
