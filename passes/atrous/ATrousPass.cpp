@@ -160,9 +160,9 @@ void horizontalInvL(const float* __restrict v, float* __restrict invL, int n, fl
     const auto sl = hn::Set(d, sigmaL), eps = hn::Set(d, kEpsL);
     int x = 1;
     for (; x + lanes < n; x += lanes) {
-        const auto g = hn::MulAdd(quarter, hn::LoadU(d, v + x - 1),
-                                  hn::MulAdd(half, hn::LoadU(d, v + x),
-                                             hn::Mul(quarter, hn::LoadU(d, v + x + 1))));
+        const auto g = hn::MulAdd(
+            quarter, hn::LoadU(d, v + x - 1),
+            hn::MulAdd(half, hn::LoadU(d, v + x), hn::Mul(quarter, hn::LoadU(d, v + x + 1))));
         const auto den = hn::MulAdd(sl, hn::Sqrt(hn::Max(g, hn::Zero(d))), eps);
         hn::StoreU(hn::Div(one, den), d, invL + x);
     }
