@@ -459,14 +459,14 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
     }
 
     // The image is filtered in bands of rows, each with private scratch planes covering the
-    // band and the rows its taps reach (2 step above and below, plus one for the 3x3 terms):
+    // band and the rows its taps reach (2 step above and below):
     // scratch then scales with the band, not the frame (about 20 MB per thread at 1080p and
     // step 16 instead of 110 MB), at the cost of recomputing the halo rows' terms. Every value
     // depends only on its pixel's neighbourhood, so results do not depend on the banding.
     const int reach = 2 * s_.step;
     const int band = std::min(height, std::max(32, 2 * reach));
     const int bands = (height + band - 1) / band;
-    const int maxRows = std::min(height, band + 2 * reach + 2);
+    const int maxRows = std::min(height, band + 2 * reach);
     const size_t bandPixels = size_t(maxRows) * size_t(width);
     const float sigmaL = s_.sigmaL, sigmaColor = s_.sigmaColor;
     const bool useNormal = s_.sigmaN > 0.f;
@@ -481,7 +481,8 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
             for (int i = i0; i < i1; ++i) {
                 const int y0 = i * band, y1 = std::min(height, y0 + band);
                 const int r0 = std::max(0, y0 - reach), r1 = std::min(height, y1 + reach);
-                const int base = std::max(0, r0 - 1), p1 = std::min(height, r1 + 1);
+                // The 3x3 terms of the band's rows read one row beyond them: inside the reach.
+                const int base = r0, p1 = r1;
                 auto off = [&](int y) { return size_t(y - base) * size_t(width); };
                 // Pass 1: sanitised copies and luminance (inputs may hold NaN/Inf; nothing below
                 // may). One plane per loop: two streams each, so every loop vectorises.
@@ -500,8 +501,9 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
                 }
                 // Pass 2: depth gradient (edge-preserving one-sided differences) and the luminance
                 // weight's 1 / (sigma_l sqrt(g3x3(Var)) + eps) with a 3x3 Gaussian prefilter (SVGF
-                // section 4.4), renormalised at the image border.
-                for (int y = r0; y < r1; ++y) {
+                // section 4.4), renormalised at the image border. Both weigh only the centre
+                // pixel p, never a tap q, so only the band's own rows need them, not its halo.
+                for (int y = y0; y < y1; ++y) {
                     const size_t o = off(y);
                     const bool up = y > 0, down = y + 1 < height;
                     const float* z = P[Z] + o;
