@@ -61,55 +61,7 @@ constexpr float kMinDot = 1e-30f;
 constexpr float kZeroWeight = -1e4f;  // log2 weight penalty: fastExp2 returns exactly 0
 constexpr float kLn2 = 0.693147180559945f;
 
-enum Plane { R, G, B, L, Z, GX, GY, NX, NY, NZ, VAR, INVL, kPlaneCount };
-
-/// Accumulators of one output row.
-struct RowAcc {
-    std::vector<float> w, r, g, b, v;
-    explicit RowAcc(int n) : w(size_t(n)), r(size_t(n)), g(size_t(n)), b(size_t(n)), v(size_t(n)) {}
-};
-
-/// Adds tap (dx, dy) to n consecutive pixels of one row: index x of `c*` addresses pixel p, of
-/// `q*` pixel q = p + (dx, dy), of `a*` p's accumulators.
-template <bool kId, bool kNormal, bool kVar>
-void accumulateTap(int n, float kh, float dxf, float dyf, float sigmaZ, float sigmaN,
-                   const float* __restrict cz, const float* __restrict cgx,
-                   const float* __restrict cgy, const float* __restrict cl,
-                   const float* __restrict cinvl, const float* __restrict cnx,
-                   const float* __restrict cny, const float* __restrict cnz,
-                   const int32_t* __restrict cid, const float* __restrict qz,
-                   const float* __restrict ql, const float* __restrict qnx,
-                   const float* __restrict qny, const float* __restrict qnz,
-                   const int32_t* __restrict qid, const float* __restrict qr,
-                   const float* __restrict qg, const float* __restrict qb,
-                   const float* __restrict qv, float* __restrict aw, float* __restrict ar,
-                   float* __restrict ag, float* __restrict ab, float* __restrict av) {
-    for (int x = 0; x < n; ++x) {
-        // SVGF eq. 3: w_z = exp(-|z_p - z_q| / (sigma_z |grad z(p) . (p - q)| + eps))
-        float denomZ =
-            sigmaZ * std::fabs(cgx[x] * dxf + cgy[x] * dyf) + kEpsZRel * cz[x] + kEpsZAbs;
-        float ez = std::fabs(cz[x] - qz[x]) / denomZ;
-        // SVGF eq. 5: w_l = exp(-|l_p - l_q| / (sigma_l sqrt(g3x3(Var)) + eps)); 1/denominator
-        // precomputed per pixel.
-        float el = std::fabs(cl[x] - ql[x]) * cinvl[x];
-        float e = -(ez + el) * px::kLog2e;
-        if constexpr (kNormal) {
-            // SVGF eq. 4: w_n = max(0, n_p . n_q)^sigma_n, as exp2(sigma_n log2(dot)).
-            float dot = cnx[x] * qnx[x] + cny[x] * qny[x] + cnz[x] * qnz[x];
-            e += sigmaN * px::fastLog2(px::clamp(dot, kMinDot, 1.f));
-            e += dot > 0.f ? 0.f : kZeroWeight;
-        }
-        // Rejections are folded into the exponent (exp2 of it is exactly 0): a select on the
-        // weight itself keeps GCC from vectorising the loop.
-        if constexpr (kId) e += cid[x] == qid[x] ? 0.f : kZeroWeight;
-        float w = kh * px::fastExp2(e);
-        aw[x] += w;
-        ar[x] += w * qr[x];
-        ag[x] += w * qg[x];
-        ab[x] += w * qb[x];
-        if constexpr (kVar) av[x] += w * w * qv[x];
-    }
-}
+enum Plane { R, G, B, L, Z, GX, GY, NX, NY, NZ, VAR, INVL, ID, kPlaneCount };
 
 template <class Fn>
 void copySanitized(const float* __restrict src, float* __restrict dst, int n, Fn fn) {
@@ -170,87 +122,26 @@ void horizontalInvL(const float* __restrict v, float* __restrict invL, int n, fl
     invL[n - 1] = finish((0.5f * v[n - 1] + 0.25f * v[n - 2]) / 0.75f);
 }
 
-/// The row-wise kernel: any column range [c0, c1), taps outside the image skipped. Used at the
-/// left and right borders, where filterBlock's vectors would read outside the row.
-template <bool kId, bool kNormal, bool kVar>
-void filterRows(int y0, int y1, int c0, int c1, int width, int height,
-                const ATrousPass::Settings& s, float* const* P, int base, const int32_t* ids,
-                const ImageView& outColor, const ImageView* outVar) {
-    // Rows are cut into tiles so that the centre row's planes and the accumulators of a tile
-    // stay in L1 while the 24 taps sweep over it.
-    constexpr int kTile = 256;
-    if (c1 <= c0) return;
-    RowAcc acc(std::min(c1 - c0, kTile));
-    const float kc = kH[2] * kH[2];
-    for (int y = y0; y < y1; ++y) {
-        const size_t rowP = size_t(y - base) * size_t(width);
-        for (int t0 = c0; t0 < c1; t0 += kTile) {
-            const int t1 = std::min(c1, t0 + kTile), tn = t1 - t0;
-            // The centre tap has w_z = w_n = w_l = 1 by definition (also on background pixels
-            // with a zero normal), so the weight sum never vanishes.
-            for (int k = 0; k < tn; ++k) {
-                const size_t o = rowP + size_t(t0 + k);
-                acc.w[size_t(k)] = kc;
-                acc.r[size_t(k)] = kc * P[R][o];
-                acc.g[size_t(k)] = kc * P[G][o];
-                acc.b[size_t(k)] = kc * P[B][o];
-                acc.v[size_t(k)] = kVar ? kc * kc * P[VAR][o] : 0.f;
-            }
-            for (int j = 0; j < 5; ++j) {
-                const int dy = (j - 2) * s.step;
-                const int yq = y + dy;
-                if (yq < 0 || yq >= height) continue;  // taps outside the image are skipped
-                for (int i = 0; i < 5; ++i) {
-                    if (i == 2 && j == 2) continue;
-                    const int dx = (i - 2) * s.step;
-                    // Pixels x of this tile whose tap x + dx is inside the image.
-                    const int xs = std::max(t0, -dx), xe = std::min(t1, width - dx);
-                    if (xs >= xe) continue;
-                    const size_t cp = rowP + size_t(xs);
-                    const size_t qp = size_t(yq - base) * size_t(width) + size_t(xs + dx);
-                    const size_t ap = size_t(xs - t0);
-                    auto c = [&](int plane) { return P[plane] + cp; };
-                    auto q = [&](int plane) { return P[plane] + qp; };
-                    accumulateTap<kId, kNormal, kVar>(
-                        xe - xs, kH[i] * kH[j], float(dx), float(dy), s.sigmaZ, s.sigmaN, c(Z),
-                        c(GX), c(GY), c(L), c(INVL), c(NX), c(NY), c(NZ), kId ? ids + cp : nullptr,
-                        q(Z), q(L), q(NX), q(NY), q(NZ), kId ? ids + qp : nullptr, q(R), q(G), q(B),
-                        q(VAR), acc.w.data() + ap, acc.r.data() + ap, acc.g.data() + ap,
-                        acc.b.data() + ap, acc.v.data() + ap);
-                }
-            }
-            float* oc[3] = {outColor.row(0, y) + t0, outColor.row(1, y) + t0,
-                            outColor.row(2, y) + t0};
-            float* ov = outVar ? outVar->row(0, y) + t0 : nullptr;
-            for (int k = 0; k < tn; ++k) {
-                const float inv = 1.f / acc.w[size_t(k)];  // >= kc > 0
-                oc[0][k] = acc.r[size_t(k)] * inv;
-                oc[1][k] = acc.g[size_t(k)] * inv;
-                oc[2][k] = acc.b[size_t(k)] * inv;
-                // SVGF eq. 2: Var = sum(w^2 Var_q) / (sum w)^2
-                if (ov) ov[k] = acc.v[size_t(k)] * inv * inv;
-            }
-        }
-    }
-}
-
 namespace hn = hwy::HWY_NAMESPACE;
 using simd::DF;
 using simd::DI;
 using simd::VF;
 using simd::VI;
 
-/// The same filter for K consecutive vectors of pixels (x0 .. x0 + K lanes) of row y whose 24
-/// taps all lie inside the row. The centres' terms and the accumulators stay in registers while
-/// the taps stream by (filterRows instead makes a round trip through memory per tap), and the K
-/// independent dependency chains (exp2, division, the normal's power) overlap in the pipeline.
-template <int K, int kSquarings, bool kId, bool kNormal, bool kVar>
-void filterBlocks(int x0, int y, int width, int height, const ATrousPass::Settings& s,
+/// The filter for K consecutive vectors of pixels (x0 .. x0 + K lanes) of row y. The centres'
+/// terms and the accumulators stay in registers while the taps stream by, and independent
+/// dependency chains (exp2, the normal's power) overlap in the pipeline. Band planes have rows
+/// `pitch` apart with zeroed margins beside each row, so a vector may read past the row's ends:
+/// kEdge blocks (near the left or right border, K = 1) give taps outside the row weight exactly
+/// 0, as the image border requires, and store only the lanes inside the row.
+template <int K, int kSquarings, bool kEdge, bool kId, bool kNormal, bool kVar>
+void filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATrousPass::Settings& s,
                   float* const* P, int base, const int32_t* ids, float* const oc[3], float* ov) {
+    static_assert(!kEdge || K == 1);
     const DF d;
     const DI di;
     const size_t n = hn::Lanes(d);
-    const size_t o = size_t(y - base) * size_t(width) + size_t(x0);
+    const size_t o = size_t(y - base) * pitch + size_t(x0);
     const VF kc = hn::Set(d, kH[2] * kH[2]);
     // Pre-scaled so a tap's exponent is one multiply-add: e = |dz| / denomZ' + |dl| * nInvL,
     // with denomZ' = -ln2 (sigma_z |grad z . d| + eps) and nInvL = -log2(e) / (sigma_l ...).
@@ -284,7 +175,9 @@ void filterBlocks(int x0, int y, int width, int height, const ATrousPass::Settin
     // Taps q[0..T) of vector k, given their shared depth reciprocal and kernel weight. With
     // T = 2 the two taps' statements alternate, so each step of one tap's long dependency
     // chain (dot, seven squarings, exp2) has the other's beside it to fill the pipeline.
-    auto taps = [&](auto count, int k, const size_t* q, VF rz, VF kh) HWY_ATTR {
+    const VI column = hn::Iota(di, x0);  // kEdge: each lane's x
+    const VI firstColumn = hn::Set(di, -1), pastLast = hn::Set(di, width);
+    auto taps = [&](auto count, int k, const size_t* q, const int* dxs, VF rz, VF kh) HWY_ATTR {
         constexpr int T = decltype(count)::value;
         VF e[T], w[T];
 #pragma GCC unroll 2
@@ -329,11 +222,17 @@ void filterBlocks(int x0, int y, int width, int height, const ATrousPass::Settin
         }
 #pragma GCC unroll 2
         for (int t = 0; t < T; ++t) w[t] = hn::Mul(w[t], simd::fastExp2(e[t]));
-        if constexpr (kId) {  // a tap on another object has weight exactly 0
+        if constexpr (kId || kEdge) {
 #pragma GCC unroll 2
             for (int t = 0; t < T; ++t) {
-                const auto same = hn::RebindMask(d, hn::Eq(cid[k], hn::LoadU(di, ids + q[t])));
-                w[t] = hn::IfThenElseZero(same, w[t]);
+                // A tap on another object, or outside the row, has weight exactly 0.
+                auto keep = hn::FirstN(di, n);
+                if constexpr (kId) keep = hn::Eq(cid[k], hn::LoadU(di, ids + q[t]));
+                if constexpr (kEdge) {
+                    const VI xq = hn::Add(column, hn::Set(di, dxs[t]));
+                    keep = hn::And(keep, hn::And(hn::Gt(xq, firstColumn), hn::Lt(xq, pastLast)));
+                }
+                w[t] = hn::IfThenElseZero(hn::RebindMask(d, keep), w[t]);
             }
         }
 #pragma GCC unroll 2
@@ -351,8 +250,8 @@ void filterBlocks(int x0, int y, int width, int height, const ATrousPass::Settin
     // reciprocal is computed once per pair, and the two taps are independent work that
     // overlaps in the pipeline (one tap alone is a long dependency chain: dot, seven
     // squarings, exp2).
-    const ptrdiff_t rowStride = ptrdiff_t(width);
-    const size_t centre = size_t(y - base) * size_t(width) + size_t(x0);
+    const ptrdiff_t rowStride = ptrdiff_t(pitch);
+    const size_t centre = o;
     for (int j = 0; j <= 2; ++j) {
         const int dy = (j - 2) * s.step;
         const bool upIn = y + dy >= 0, downIn = y - dy < height;  // dy <= 0
@@ -377,10 +276,13 @@ void filterBlocks(int x0, int y, int width, int height, const ATrousPass::Settin
                 const VF rz = hn::Mul(r0, hn::NegMulAdd(denomZ, r0, two));
                 const ptrdiff_t ck = ptrdiff_t(centre + size_t(k) * n);
                 const size_t q[2] = {size_t(ck + off), size_t(ck - off)};
+                const int dxs[2] = {dx, -dx};
                 if (upIn && downIn)
-                    taps(std::integral_constant<int, 2>{}, k, q, rz, kh);
+                    taps(std::integral_constant<int, 2>{}, k, q, dxs, rz, kh);
+                else if (upIn)
+                    taps(std::integral_constant<int, 1>{}, k, q, dxs, rz, kh);
                 else
-                    taps(std::integral_constant<int, 1>{}, k, upIn ? q : q + 1, rz, kh);
+                    taps(std::integral_constant<int, 1>{}, k, q + 1, dxs + 1, rz, kh);
             }
         }
     }
@@ -388,18 +290,28 @@ void filterBlocks(int x0, int y, int width, int height, const ATrousPass::Settin
     for (int k = 0; k < K; ++k) {
         const size_t xk = size_t(x0) + size_t(k) * n;
         const VF inv = hn::Div(one, aw[k]);  // aw >= kc > 0
-        hn::StoreU(hn::Mul(ar[k], inv), d, oc[0] + xk);
-        hn::StoreU(hn::Mul(ag[k], inv), d, oc[1] + xk);
-        hn::StoreU(hn::Mul(ab[k], inv), d, oc[2] + xk);
         // SVGF eq. 2: Var = sum(w^2 Var_q) / (sum w)^2
-        if (ov) hn::StoreU(hn::Mul(av[k], hn::Mul(inv, inv)), d, ov + xk);
+        const VF out[4] = {hn::Mul(ar[k], inv), hn::Mul(ag[k], inv), hn::Mul(ab[k], inv),
+                           hn::Mul(av[k], hn::Mul(inv, inv))};
+        float* const dst[4] = {oc[0], oc[1], oc[2], ov};
+        const int planes = ov ? 4 : 3;
+        if (!kEdge || x0 + int(n) <= width) {
+            for (int c = 0; c < planes; ++c) hn::StoreU(out[c], d, dst[c] + xk);
+        } else {  // the row's last, partial vector: only the lanes inside the row
+            HWY_ALIGN float lanes[HWY_MAX_BYTES / sizeof(float)];
+            for (int c = 0; c < planes; ++c) {
+                hn::Store(out[c], d, lanes);
+                std::copy_n(lanes, width - x0, dst[c] + xk);
+            }
+        }
     }
-}
+}  // namespace
 
-/// Rows [y0, y1): vectors where every tap is inside the row, the row-wise kernel at the
-/// borders. Which pixels take which path depends only on the width and step.
-template <bool kId, bool kNormal, bool kVar>
-void filterRange(int y0, int y1, int width, int height, const ATrousPass::Settings& s,
+/// Rows [y0, y1): whole vectors where every tap is inside the row, edge blocks (masked taps,
+/// partial last vector) near the borders. Which pixels take which path depends only on the
+/// width and step, never on the banding or thread count.
+template <int kSquarings, bool kId, bool kNormal, bool kVar>
+void filterRange(int y0, int y1, int width, size_t pitch, int height, const ATrousPass::Settings& s,
                  float* const* P, int base, const int32_t* ids, const ImageView& outColor,
                  const ImageView* outVar) {
     // Two interleaved vectors per step on 8 lanes (AVX2); on 16 lanes (AVX-512) one vector keeps
@@ -407,33 +319,22 @@ void filterRange(int y0, int y1, int width, int height, const ATrousPass::Settin
     constexpr int K = HWY_LANES(float) >= 16 ? 1 : 2;
     const int n = int(hn::Lanes(DF()));
     const int reach = 2 * s.step;
-    const int first = std::min(width, reach);
-    const int blocks = std::max(0, (width - reach - first) / n);
-    const int last = first + blocks * n;
-    filterRows<kId, kNormal, kVar>(y0, y1, 0, first, width, height, s, P, base, ids, outColor,
-                                   outVar);
-    filterRows<kId, kNormal, kVar>(y0, y1, last, width, width, height, s, P, base, ids, outColor,
-                                   outVar);
     for (int y = y0; y < y1; ++y) {
         float* const oc[3] = {outColor.row(0, y), outColor.row(1, y), outColor.row(2, y)};
         float* ov = outVar ? outVar->row(0, y) : nullptr;
-        int x = first;
-        // The default sigma_n = 128 = 2^7 gets a kernel with its seven squarings unrolled.
-        if (s.sigmaN == 128.f) {
-            for (; x + K * n <= last; x += K * n)
-                filterBlocks<K, 7, kId, kNormal, kVar>(x, y, width, height, s, P, base, ids, oc,
-                                                       ov);
-            for (; x < last; x += n)
-                filterBlocks<1, 7, kId, kNormal, kVar>(x, y, width, height, s, P, base, ids, oc,
-                                                       ov);
-        } else {
-            for (; x + K * n <= last; x += K * n)
-                filterBlocks<K, 0, kId, kNormal, kVar>(x, y, width, height, s, P, base, ids, oc,
-                                                       ov);
-            for (; x < last; x += n)
-                filterBlocks<1, 0, kId, kNormal, kVar>(x, y, width, height, s, P, base, ids, oc,
-                                                       ov);
-        }
+        auto block = [&](auto k, auto edge, int x) {
+            filterBlocks<decltype(k)::value, kSquarings, decltype(edge)::value, kId, kNormal, kVar>(
+                x, y, width, pitch, height, s, P, base, ids, oc, ov);
+        };
+        using One = std::integral_constant<int, 1>;
+        using Two = std::integral_constant<int, K>;
+        using Edge = std::true_type;
+        using Inside = std::false_type;
+        int x = 0;
+        for (; x < width && x < reach; x += n) block(One{}, Edge{}, x);
+        for (; x + K * n + reach <= width; x += K * n) block(Two{}, Inside{}, x);
+        for (; x + n + reach <= width; x += n) block(One{}, Inside{}, x);
+        for (; x < width; x += n) block(One{}, Edge{}, x);
     }
 }
 
@@ -459,15 +360,20 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
     }
 
     // The image is filtered in bands of rows, each with private scratch planes covering the
-    // band and the rows its taps reach (2 step above and below):
-    // scratch then scales with the band, not the frame (about 20 MB per thread at 1080p and
-    // step 16 instead of 110 MB), at the cost of recomputing the halo rows' terms. Every value
-    // depends only on its pixel's neighbourhood, so results do not depend on the banding.
+    // band and the rows its taps reach (2 step above and below): scratch then scales with the
+    // band, not the frame (about 20 MB per thread at 1080p and step 16 instead of 110 MB), at
+    // the cost of recomputing the halo rows' terms. Every value depends only on its pixel's
+    // neighbourhood, so results do not depend on the banding. Band rows are `pitch` apart, each
+    // followed by a zeroed margin of the reach plus one vector (which is also the next row's
+    // left margin; the first row has one before it), so that the kernel's vectors may read past
+    // a row's ends (filterBlocks' edge blocks mask those taps).
     const int reach = 2 * s_.step;
     const int band = std::min(height, std::max(32, 2 * reach));
     const int bands = (height + band - 1) / band;
     const int maxRows = std::min(height, band + 2 * reach);
-    const size_t bandPixels = size_t(maxRows) * size_t(width);
+    const size_t margin = size_t(reach) + hn::Lanes(DF());
+    const size_t pitch = size_t(width) + margin;
+    const size_t bandPixels = margin + size_t(maxRows) * pitch;
     const float sigmaL = s_.sigmaL, sigmaColor = s_.sigmaColor;
     const bool useNormal = s_.sigmaN > 0.f;
     const Settings s = s_;
@@ -476,14 +382,19 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
         [&](int i0, int i1) {
             auto lease = ScratchPool::acquire(kPlaneCount, bandPixels);
             float* P[kPlaneCount];
-            for (int k = 0; k < kPlaneCount; ++k) P[k] = lease[size_t(k)];
+            for (int k = 0; k < kPlaneCount; ++k) P[k] = lease[size_t(k)] + margin;
             std::vector<float> vcol(static_cast<size_t>(width));
             for (int i = i0; i < i1; ++i) {
                 const int y0 = i * band, y1 = std::min(height, y0 + band);
                 const int r0 = std::max(0, y0 - reach), r1 = std::min(height, y1 + reach);
                 // The 3x3 terms of the band's rows read one row beyond them: inside the reach.
                 const int base = r0, p1 = r1;
-                auto off = [&](int y) { return size_t(y - base) * size_t(width); };
+                auto off = [&](int y) { return size_t(y - base) * pitch; };
+                // Margins: zero (finite: a masked tap multiplies them by 0).
+                for (int k = 0; k < kPlaneCount; ++k) {
+                    std::fill_n(P[k] - margin, margin, 0.f);
+                    for (int y = base; y < p1; ++y) std::fill_n(P[k] + off(y) + width, margin, 0.f);
+                }
                 // Pass 1: sanitised copies and luminance (inputs may hold NaN/Inf; nothing below
                 // may). One plane per loop: two streams each, so every loop vectorises.
                 for (int y = base; y < p1; ++y) {
@@ -497,6 +408,9 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
                     if (var)
                         copySanitized(var->row(0, y), P[VAR] + o, width,
                                       [](float v) { return px::sanitizePositive(v, 1e32f); });
+                    if (ids)
+                        std::copy_n(ids + size_t(y) * size_t(width), width,
+                                    reinterpret_cast<int32_t*>(P[ID]) + o);
                     lumaRow(P[R] + o, P[G] + o, P[B] + o, P[L] + o, width);
                 }
                 // Pass 2: depth gradient (edge-preserving one-sided differences) and the luminance
@@ -507,7 +421,7 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
                     const size_t o = off(y);
                     const bool up = y > 0, down = y + 1 < height;
                     const float* z = P[Z] + o;
-                    gradientRow(z, up ? z - width : z, down ? z + width : z, P[GX] + o, P[GY] + o,
+                    gradientRow(z, up ? z - pitch : z, down ? z + pitch : z, P[GX] + o, P[GY] + o,
                                 width, up, down);
                     if (!var) {
                         std::fill(P[INVL] + o, P[INVL] + o + width, 1.f / (sigmaColor + kEpsL));
@@ -516,20 +430,26 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
                     // Separable 3x3 Gaussian (1/4, 1/2, 1/4)^2: vertical, then horizontal; weights
                     // of taps outside the image are dropped and the rest renormalised.
                     const float* v = P[VAR] + o;
-                    const float* va = up ? v - width : v;
-                    const float* vb = down ? v + width : v;
+                    const float* va = up ? v - pitch : v;
+                    const float* vb = down ? v + pitch : v;
                     const float wa = up ? 0.25f : 0.f, wb = down ? 0.25f : 0.f;
                     const float vNorm = 1.f / (0.5f + wa + wb);
                     verticalRow(va, v, vb, wa, wb, vNorm, vcol.data(), width);
                     horizontalInvL(vcol.data(), P[INVL] + o, width, sigmaL);
                 }
                 // Pass 3: the filter itself.
-                // Object ids need no sanitising: the kernels read the input's rows in place,
-                // addressed like the band planes (row base first).
-                const int32_t* bandIds = ids ? ids + size_t(base) * size_t(width) : nullptr;
+                const int32_t* bandIds = ids ? reinterpret_cast<const int32_t*>(P[ID]) : nullptr;
                 auto run = [&](auto id, auto nrm, auto v) {
-                    filterRange<decltype(id)::value, decltype(nrm)::value, decltype(v)::value>(
-                        y0, y1, width, height, s, P, base, bandIds, outColor, outVar);
+                    constexpr bool kId = decltype(id)::value, kNormal = decltype(nrm)::value,
+                                   kVar = decltype(v)::value;
+                    // The default sigma_n = 128 = 2^7 gets a kernel with its seven squarings
+                    // unrolled.
+                    if (s.sigmaN == 128.f)
+                        filterRange<7, kId, kNormal, kVar>(y0, y1, width, pitch, height, s, P, base,
+                                                           bandIds, outColor, outVar);
+                    else
+                        filterRange<0, kId, kNormal, kVar>(y0, y1, width, pitch, height, s, P, base,
+                                                           bandIds, outColor, outVar);
                 };
                 using T = std::true_type;
                 using F = std::false_type;
