@@ -11,7 +11,8 @@ benches=$(cmake --build "$build" --target help | sed -n 's/^\.\.\. \(.*_bench\)$
 # shellcheck disable=SC2086
 cmake --build "$build" -j"$(nproc)" --target $benches >/dev/null
 echo "commit $(git rev-parse --short HEAD 2>/dev/null || echo unknown); $(nproc) cores;" \
-  "$(sed -n 's/^model name[^:]*: //p' /proc/cpuinfo | head -1); load $(cut -d' ' -f1-3 /proc/loadavg)"
+  "$(sed -n 's/^model name[^:]*: //p' /proc/cpuinfo | head -1); load $(cut -d' ' -f1-3 /proc/loadavg);" \
+  "busy clock $(bash scripts/lib/clock-probe.sh) GHz"
 for b in $benches; do
   [[ $b == engine_overhead_bench ]] && continue
   "$build/bin/$b" --benchmark_filter="${1:-.}" --benchmark_min_time=1 2>/dev/null |

@@ -11,8 +11,11 @@ kestrel=build/bin/kestrel
 work=${KESTREL_BENCH_DIR:-kestrel-out/bench-scenes}
 graphs=(svgf svgf-notaa games202-jbf games202-atrous)
 
-echo "| graph | size | threads | ms/frame (median) | loader ms | peak RSS MB | RSS bytes/pixel |"
-echo "| --- | --- | --- | --- | --- | --- | --- |"
+echo "commit $(git rev-parse --short HEAD 2>/dev/null || echo unknown); $(nproc) cores;" \
+  "$(sed -n 's/^model name[^:]*: //p' /proc/cpuinfo | head -1); load $(cut -d' ' -f1-3 /proc/loadavg)"
+echo
+echo "| graph | size | threads | ms/frame (median) | loader ms | peak RSS MB | RSS bytes/pixel | busy clock GHz |"
+echo "| --- | --- | --- | --- | --- | --- | --- | --- |"
 for size in 1280x720 1920x1080; do
   w=${size%x*}; h=${size#*x}
   scene="$work/$size"
@@ -29,7 +32,7 @@ for size in 1280x720 1920x1080; do
       load=$(echo "$row" | awk '{print $NF}')
       rss=$(echo "$out" | sed -n 's/.*peak resident memory of the bench process: \([0-9.]*\) MB.*/\1/p')
       bpp=$(awk -v r="$rss" -v p="$((w * h))" 'BEGIN { printf "%.0f", r * 1048576 / p }')
-      echo "| $g | $size | $t | $ms | $load | $rss | $bpp |"
+      echo "| $g | $size | $t | $ms | $load | $rss | $bpp | $(bash scripts/lib/clock-probe.sh) |"
     done
   done
 done
