@@ -66,16 +66,9 @@ inline VF luminance(VF r, VF g, VF b) {
                       hn::MulAdd(hn::Set(d, 0.7152f), g, hn::Mul(hn::Set(d, 0.2126f), r)));
 }
 
-/// px::fastExp2: relative error below 3e-7 on [-126, 126]; exactly 0 below -126.5.
-inline VF fastExp2(VF x) {
+/// 2^f for f in [-0.5, 0.5]: px::fastExp2's polynomial (Cephes exp2f).
+inline VF exp2Polynomial(VF f) {
     const DF d;
-#if HWY_TARGET <= HWY_AVX3
-    // AVX-512: the same n and f (hardware round to nearest, ties to even, as the magic-number
-    // addition below) and the same polynomial; vscalefps then applies 2^n and a zero mask
-    // gives 0 below -126.5, in 10 instructions instead of 14. Bit-identical to the generic form.
-    const VF xc = hn::Min(x, hn::Set(d, 126.f));
-    const VF n = hn::Round(xc);
-    const VF f = hn::Sub(xc, n);
     VF p = hn::Set(d, 1.535336188319500e-4f);
     p = hn::MulAdd(p, f, hn::Set(d, 1.339887440266574e-3f));
     p = hn::MulAdd(p, f, hn::Set(d, 9.618437357674640e-3f));
@@ -83,6 +76,21 @@ inline VF fastExp2(VF x) {
     p = hn::MulAdd(p, f, hn::Set(d, 2.402264791363012e-1f));
     p = hn::MulAdd(p, f, hn::Set(d, 6.931472028550421e-1f));
     p = hn::MulAdd(p, f, hn::Set(d, 1.f));
+    return p;
+}
+
+/// px::fastExp2: relative error below 3e-7 on [-126, 126]; exactly 0 below -126.5.
+inline VF fastExp2(VF x) {
+    const DF d;
+#if HWY_TARGET <= HWY_AVX3
+    // AVX-512: the same n and f (hardware round to nearest, ties to even, as the magic-number
+    // addition below) and the same polynomial; vscalefps then applies 2^n and a zero mask
+    // gives 0 below -126.5, in 10 instructions instead of 14. Equal to the generic form by
+    // construction (the same n, f and polynomial; 2^n applied exactly, one rounding).
+    const VF xc = hn::Min(x, hn::Set(d, 126.f));
+    const VF n = hn::Round(xc);
+    const VF f = hn::Sub(xc, n);
+    const VF p = exp2Polynomial(f);
     const auto keep = hn::Ge(xc, hn::Set(d, -126.5f));
     return VF{_mm512_maskz_scalef_ps(keep.raw, p.raw, n.raw)};
 #else
@@ -90,13 +98,7 @@ inline VF fastExp2(VF x) {
     const VF xc = hn::Min(hn::Max(x, hn::Set(d, -127.f)), hn::Set(d, 126.f));
     const VF big = hn::Add(xc, hn::Set(d, px::kRoundMagic));
     const VF f = hn::Sub(xc, hn::Sub(big, hn::Set(d, px::kRoundMagic)));
-    VF p = hn::Set(d, 1.535336188319500e-4f);
-    p = hn::MulAdd(p, f, hn::Set(d, 1.339887440266574e-3f));
-    p = hn::MulAdd(p, f, hn::Set(d, 9.618437357674640e-3f));
-    p = hn::MulAdd(p, f, hn::Set(d, 5.550332471162809e-2f));
-    p = hn::MulAdd(p, f, hn::Set(d, 2.402264791363012e-1f));
-    p = hn::MulAdd(p, f, hn::Set(d, 6.931472028550421e-1f));
-    p = hn::MulAdd(p, f, hn::Set(d, 1.f));
+    const VF p = exp2Polynomial(f);
     // (n + 127) << 23 from the rounded value's bits: no float-to-int conversion.
     const VI biased = hn::Sub(hn::BitCast(di, big), hn::Set(di, px::kRoundMagicBits - 127));
     return hn::Mul(p, hn::BitCast(d, hn::ShiftLeft<23>(biased)));
