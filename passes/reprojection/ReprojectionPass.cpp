@@ -1,6 +1,7 @@
 #include "ReprojectionPass.h"
 
 #include <kestrel/PixelMath.h>
+#include <kestrel/SimdMath.h>
 
 #include <algorithm>
 #include <cmath>
@@ -205,7 +206,7 @@ struct PixelOut {
 };
 
 // The complete per-pixel reprojection (bilinear taps, 3x3 fallback, Catmull-Rom), scalar, with
-// bounds checks on every tap. Used for the pixels the row kernel does not take: taps near the
+// bounds checks on every tap. Used for the pixels the tap kernel does not take: taps near the
 // image border or off screen, invalid positions, and the (rare) 3x3 fallback.
 PixelOut reprojectPixel(const Sources& S, const PixelRef& P) {
     const int w = S.w, h = S.h;
@@ -300,208 +301,193 @@ PixelOut reprojectPixel(const Sources& S, const PixelRef& P) {
     return o;
 }
 
-// The row kernel: pixels x in [a, b) of one row whose taps all lie at the same integer offset
-// (x0 = x + dx, y0 = y + dy) and inside the image (rows y0-1..y0+2 and columns x0-1..x0+2 for
-// Catmull-Rom, else y0..y0+1 and x0..x0+1). Loads are then contiguous and need no bounds
-// checks, so each stage below is a branch-free loop the compiler vectorises across x. The work
-// is split into small stages (consistency masks, weights, one pass per output plane) so each
-// loop keeps few pointers live. Taps are accumulated with selects in the scalar order (a
-// skipped tap leaves the sums untouched), so every result is bit-identical to reprojectPixel.
-// Pixels whose bilinear weight sum is below the 3x3-fallback threshold are recomputed by
-// reprojectPixel afterwards.
-//
-// Consistency bits: bit 4 * j + (k + 1) for the tap at column x0 + k, row y0 - 1 + j
-// (k, j - 1 in -1..2); the bilinear taps are bits 5, 6 (row y0) and 9, 10 (row y0 + 1).
-constexpr int kBit00 = 5, kBit10 = 6, kBit01 = 9, kBit11 = 10;
+// The tap kernel: one vector of pixels of a row at a time, everything in registers. Where every
+// lane's taps lie inside the image at one integer offset (x0 = x + dx, y0 = y + dy, the common
+// case: motion varies slowly) the taps are contiguous loads; elsewhere they are gathered per
+// lane. Lanes whose taps may leave the image, invalid positions and the 3x3 fallback (weight sum
+// below 1e-4) are recomputed afterwards by reprojectPixel. Every operation is the reference's,
+// in its order and with its roundings (fused where GCC contracts the scalar code), with masked
+// selects where the scalar code skips a tap, so results are bit-identical to reprojectPixel
+// (tests/passes/reprojection, 0 ulp) and independent of how rows are split among threads.
+namespace hn = hwy::HWY_NAMESPACE;
+using simd::DF;
+using simd::DI;
+using simd::MF;
+using simd::VF;
+using simd::VI;
 
-/// This row's per-pixel reference values and the kernel's per-pixel scratch.
-struct KernelRow {
-    const float *zRef, *n0, *n1, *n2, *invZ, *invN, *fx, *fy;
+/// One row's per-pixel terms (scratch rows, padded to whole vectors) and output rows.
+struct RowTerms {
+    const float *zRef, *n0, *n1, *n2, *invZ, *invN;
+    const float *bw[4], *wx[4], *wy[4];  ///< bilinear and (Catmull-Rom) separable weights
     const int32_t* refId;
-    int32_t* mask;
-    float *sumW, *inv, *bw[4], *wx[4], *wy[4];
+    float* sumW;
+    float *oc[3], *om[2], *oh;
+    bool hasC, hasM, hasH;
 };
 
-// Consistency of taps at columns x0 + k, k = K0 .. K0 + NK - 1, in one previous-frame row
-// (SVGF, Falcor's isReprjValid), OR-ed into the mask at bit `bit0 + k - K0`. z and pn* are
-// that row's sanitised depth and normal (see sanitizeSegment).
-template <int K0, int NK>
-void consistencyRow(int a, int b, int dx, int bit0, const float* __restrict z,
-                    const float* __restrict pn0, const float* __restrict pn1,
-                    const float* __restrict pn2, const int32_t* __restrict ids,
-                    const KernelRow& row, float dThr, float nThr) {
-    const float *zRef = row.zRef, *n0 = row.n0, *n1 = row.n1, *n2 = row.n2, *invZ = row.invZ,
-                *invN = row.invN;
-    const int32_t* refId = row.refId;
-    int32_t* mask = row.mask;
-#pragma GCC ivdep
-    for (int x = a; x < b; ++x) {
-        const float zR = zRef[x], c0 = n0[x], c1 = n1[x], c2 = n2[x], iz = invZ[x], in = invN[x];
-        const int32_t rid = refId[x];
-        int32_t m = mask[x];
-#pragma GCC unroll 4
-        for (int k = 0; k < NK; ++k) {
-            const int t = x + dx + K0 + k;
-            const float dz = std::fabs(zR - z[t]) * iz;
-            const float d0 = c0 - pn0[t];
-            const float d1 = c1 - pn1[t];
-            const float d2 = c2 - pn2[t];
-            float dn2 = 0;
-            dn2 += d0 * d0;
-            dn2 += d1 * d1;
-            dn2 += d2 * d2;
-            const bool ok = (ids[t] == rid) & !(dz > dThr) & (std::sqrt(dn2) * in <= nThr);
-            m |= int32_t(ok) << (bit0 + k);
-        }
-        mask[x] = m;
-    }
-}
-
-// Bilinear weights, their sum over the consistent taps with positive weight (in tap order),
-// its reciprocal, and (Catmull-Rom) the 4 + 4 separable weights.
-template <bool CR>
-void weightsRow(int a, int b, const KernelRow& row) {
-    const float *fxs = row.fx, *fys = row.fy;
-    const int32_t* mask = row.mask;
-    float *sumW = row.sumW, *inv = row.inv, *bw0 = row.bw[0], *bw1 = row.bw[1], *bw2 = row.bw[2],
-          *bw3 = row.bw[3];
-#pragma GCC ivdep
-    for (int x = a; x < b; ++x) {
-        const float fx = fxs[x], fy = fys[x];
-        const int32_t m = mask[x];
-        const float w0 = (1 - fx) * (1 - fy), w1 = fx * (1 - fy), w2 = (1 - fx) * fy, w3 = fx * fy;
-        float sw = 0;
-        sw = ((m & (1 << kBit00)) != 0) & (w0 > 0.f) ? sw + w0 : sw;
-        sw = ((m & (1 << kBit10)) != 0) & (w1 > 0.f) ? sw + w1 : sw;
-        sw = ((m & (1 << kBit01)) != 0) & (w2 > 0.f) ? sw + w2 : sw;
-        sw = ((m & (1 << kBit11)) != 0) & (w3 > 0.f) ? sw + w3 : sw;
-        bw0[x] = w0;
-        bw1[x] = w1;
-        bw2[x] = w2;
-        bw3[x] = w3;
-        sumW[x] = sw;
-        inv[x] = 1.f / sw;  // sw < 1e-4: recomputed by reprojectPixel
-    }
-    if constexpr (CR) {
-        float *wx0 = row.wx[0], *wx1 = row.wx[1], *wx2 = row.wx[2], *wx3 = row.wx[3];
-        float *wy0 = row.wy[0], *wy1 = row.wy[1], *wy2 = row.wy[2], *wy3 = row.wy[3];
-#pragma GCC ivdep
-        for (int x = a; x < b; ++x) {
-            float wx[4], wy[4];
-            catmullRomWeights(fxs[x], wx);
-            catmullRomWeights(fys[x], wy);
-            wx0[x] = wx[0];
-            wx1[x] = wx[1];
-            wx2[x] = wx[2];
-            wx3[x] = wx[3];
-            wy0[x] = wy[0];
-            wy1[x] = wy[1];
-            wy2[x] = wy[2];
-            wy3[x] = wy[3];
-        }
-    }
-}
-
-enum class Sanitize { Depth, Normal, Radiance, Moment1, Moment2, Length };
-
-// Sanitises columns [c0, c1) of a previous-frame row into the same columns of `dst` once per
-// run, so the stages below read each tap's sanitised value instead of sanitising it again for
-// every pixel and tap that reads it (16 taps per pixel for Catmull-Rom). Columns from `w` on
-// (read only by the stages' rounding up to whole vectors, never used) become 0.
-template <Sanitize S>
-void sanitizeSegment(int c0, int c1, int w, const float* __restrict src, float* __restrict dst) {
-    const int cv = std::min(c1, w);
-#pragma GCC ivdep
-    for (int i = c0; i < cv; ++i) {
-        const float v = src[i];
-        if constexpr (S == Sanitize::Depth) dst[i] = px::sanitizeDepth(v);
-        if constexpr (S == Sanitize::Normal) dst[i] = px::sanitizeNormal(v);
-        if constexpr (S == Sanitize::Radiance || S == Sanitize::Moment1) dst[i] = px::sanitize(v);
-        if constexpr (S == Sanitize::Moment2) dst[i] = px::sanitizePositive(v, 1e32f);
-        if constexpr (S == Sanitize::Length) dst[i] = px::sanitizePositive(v, 1e6f);
-    }
-    for (int i = std::max(cv, c0); i < c1; ++i) dst[i] = 0.f;
-}
-
-// The geometry of a previous-frame row (sanitised depth and normal, object ids) for columns
-// [c0, c1), in one loop; as sanitizeSegment.
-void geometrySegment(int c0, int c1, int w, const float* __restrict z, const float* __restrict n0,
-                     const float* __restrict n1, const float* __restrict n2,
-                     const int32_t* __restrict ids, float* __restrict zs, float* __restrict ns0,
-                     float* __restrict ns1, float* __restrict ns2, int32_t* __restrict idsOut) {
-    const int cv = std::min(c1, w);
-#pragma GCC ivdep
-    for (int i = c0; i < cv; ++i) {
-        zs[i] = px::sanitizeDepth(z[i]);
-        ns0[i] = px::sanitizeNormal(n0[i]);
-        ns1[i] = px::sanitizeNormal(n1[i]);
-        ns2[i] = px::sanitizeNormal(n2[i]);
-        idsOut[i] = ids ? ids[i] : 0;
-    }
-    for (int i = std::max(cv, c0); i < c1; ++i) {
-        zs[i] = ns0[i] = ns1[i] = ns2[i] = 0.f;
-        idsOut[i] = 0;
-    }
-}
-
-// One output plane: the consistent bilinear taps of the sanitised rows r0 (y0) and r1 (y0 + 1),
-// weighted and divided by the weight sum. Length: the history length, whose product is rounded
-// before the sum (not fused into an FMA), as the compiler always evaluated
-// `accH += wt * (hist ? h : 1)`; std::fma(a, b, 0) is that rounded product and cannot be
-// contracted further.
-template <bool Length>
-void bilinearPlaneRow(int a, int b, int dx, const float* __restrict r0, const float* __restrict r1,
-                      const KernelRow& row, float* __restrict out) {
-    const float *bw0 = row.bw[0], *bw1 = row.bw[1], *bw2 = row.bw[2], *bw3 = row.bw[3],
-                *inv = row.inv;
-    const int32_t* mask = row.mask;
-    auto add = [](float acc, float wt, float v) __attribute__((always_inline)) {
-        if constexpr (Length) return acc + std::fma(wt, v, 0.f);
-        return acc + wt * v;
+template <bool Contig, bool CR>
+HWY_INLINE void tapVector(const Sources& S, const RowTerms& R, int x, ptrdiff_t base, VI idx) {
+    const DF d;
+    const DI di;
+    const ptrdiff_t w = S.w;
+    auto ld = [&](const float* p, int k, int j) HWY_ATTR {
+        if constexpr (Contig)
+            return hn::LoadU(d, p + base + ptrdiff_t(j) * w + k);
+        else
+            return hn::GatherIndex(d, p, hn::Add(idx, hn::Set(di, int32_t(j * w + k))));
     };
-#pragma GCC ivdep
-    for (int x = a; x < b; ++x) {
-        const int t = x + dx;
-        const int32_t m = mask[x];
-        const float w0 = bw0[x], w1 = bw1[x], w2 = bw2[x], w3 = bw3[x];
-        const float v0 = r0[t], v1 = r0[t + 1], v2 = r1[t], v3 = r1[t + 1];
-        float acc = 0;
-        acc = ((m & (1 << kBit00)) != 0) & (w0 > 0.f) ? add(acc, w0, v0) : acc;
-        acc = ((m & (1 << kBit10)) != 0) & (w1 > 0.f) ? add(acc, w1, v1) : acc;
-        acc = ((m & (1 << kBit01)) != 0) & (w2 > 0.f) ? add(acc, w2, v2) : acc;
-        acc = ((m & (1 << kBit11)) != 0) & (w3 > 0.f) ? add(acc, w3, v3) : acc;
-        out[x] = acc * inv[x];
-    }
-}
-
-// Catmull-Rom 4x4 of one sanitised colour plane (rows y0-1..y0+2) where all 16 taps are
-// consistent, clamped to the inner 2x2 taps' range so negative lobes cannot ring.
-void catmullRomPlaneRow(int a, int b, int dx, const float* const* rows, const KernelRow& row,
-                        float* __restrict out) {
-    const float *q0 = rows[0], *q1 = rows[1], *q2 = rows[2], *q3 = rows[3];
-    const float *wx0 = row.wx[0], *wx1 = row.wx[1], *wx2 = row.wx[2], *wx3 = row.wx[3];
-    const float *wy0 = row.wy[0], *wy1 = row.wy[1], *wy2 = row.wy[2], *wy3 = row.wy[3];
-    const int32_t* mask = row.mask;
-#pragma GCC ivdep
-    for (int x = a; x < b; ++x) {
-        const int t = x + dx - 1;
-        const float wx[4] = {wx0[x], wx1[x], wx2[x], wx3[x]};
-        const float wy[4] = {wy0[x], wy1[x], wy2[x], wy3[x]};
-        const float* q[4] = {q0, q1, q2, q3};
-        float s = 0, lo = 3e38f, hi = -3e38f;
-#pragma GCC unroll 4
-        for (int j = 0; j < 4; ++j)
-#pragma GCC unroll 4
-            for (int k = 0; k < 4; ++k) {
-                const float v = q[j][t + k];
-                s += wx[k] * wy[j] * v;
-                if (j >= 1 && j <= 2 && k >= 1 && k <= 2) {
-                    lo = v < lo ? v : lo;  // std::min(lo, v), std::max(hi, v)
-                    hi = hi < v ? v : hi;
+    auto ldId = [&](int k, int j) HWY_ATTR {
+        if constexpr (Contig)
+            return hn::LoadU(di, S.pIds + base + ptrdiff_t(j) * w + k);
+        else
+            return hn::GatherIndex(di, S.pIds, hn::Add(idx, hn::Set(di, int32_t(j * w + k))));
+    };
+    const VF zR = hn::LoadU(d, R.zRef + x), c0 = hn::LoadU(d, R.n0 + x),
+             c1 = hn::LoadU(d, R.n1 + x), c2 = hn::LoadU(d, R.n2 + x);
+    const VF iz = hn::LoadU(d, R.invZ + x), in = hn::LoadU(d, R.invN + x);
+    const VI rid = hn::LoadU(di, R.refId + x);
+    const VF dThr = hn::Set(d, S.dThr), nThr = hn::Set(d, S.nThr), zero = hn::Zero(d);
+    // The consistency test of the tap at (x0 + k, y0 + j) (SVGF; Falcor's isReprjValid).
+    auto consistent = [&](int k, int j) HWY_ATTR {
+        const VF dz = hn::Mul(hn::Abs(hn::Sub(zR, simd::sanitizeDepth(ld(S.pz, k, j)))), iz);
+        const VF d0 = hn::Sub(c0, simd::sanitizeNormal(ld(S.pn[0], k, j)));
+        const VF d1 = hn::Sub(c1, simd::sanitizeNormal(ld(S.pn[1], k, j)));
+        const VF d2 = hn::Sub(c2, simd::sanitizeNormal(ld(S.pn[2], k, j)));
+        const VF dn2 = hn::MulAdd(d2, d2, hn::MulAdd(d1, d1, hn::Mul(d0, d0)));
+        MF ok = hn::AndNot(hn::Gt(dz, dThr), hn::Le(hn::Mul(hn::Sqrt(dn2), in), nThr));
+        if (S.pIds) ok = hn::And(ok, hn::RebindMask(d, hn::Eq(ldId(k, j), rid)));
+        return ok;
+    };
+    const MF k00 = consistent(0, 0), k10 = consistent(1, 0), k01 = consistent(0, 1),
+             k11 = consistent(1, 1);
+    const VF w0 = hn::LoadU(d, R.bw[0] + x), w1 = hn::LoadU(d, R.bw[1] + x),
+             w2 = hn::LoadU(d, R.bw[2] + x), w3 = hn::LoadU(d, R.bw[3] + x);
+    // Taps that count: consistent with positive weight, summed in tap order.
+    const MF a0 = hn::And(k00, hn::Gt(w0, zero)), a1 = hn::And(k10, hn::Gt(w1, zero)),
+             a2 = hn::And(k01, hn::Gt(w2, zero)), a3 = hn::And(k11, hn::Gt(w3, zero));
+    VF sw = zero;
+    sw = hn::IfThenElse(a0, hn::Add(sw, w0), sw);
+    sw = hn::IfThenElse(a1, hn::Add(sw, w1), sw);
+    sw = hn::IfThenElse(a2, hn::Add(sw, w2), sw);
+    sw = hn::IfThenElse(a3, hn::Add(sw, w3), sw);
+    hn::StoreU(sw, d, R.sumW + x);
+    const VF inv = hn::Div(hn::Set(d, 1.f), sw);  // sw < 1e-4 (or 0): recomputed by reprojectPixel
+    // The reference's `acc += wt * v` is contracted into a fused multiply-add (GCC's default
+    // for C++), except the history length's, whose product is rounded before the sum: written
+    // out here, MulAdd(wt, v, 0) being that rounded product (no contraction can fuse it further).
+    auto bilinear = [&](const float* p, auto sanitizeTap, auto roundedProduct) HWY_ATTR {
+        auto add = [&](VF acc, VF wt, VF v) HWY_ATTR {
+            if constexpr (decltype(roundedProduct)::value)
+                return hn::Add(acc, hn::MulAdd(wt, v, zero));
+            return hn::MulAdd(wt, v, acc);
+        };
+        VF acc = zero;
+        acc = hn::IfThenElse(a0, add(acc, w0, sanitizeTap(ld(p, 0, 0))), acc);
+        acc = hn::IfThenElse(a1, add(acc, w1, sanitizeTap(ld(p, 1, 0))), acc);
+        acc = hn::IfThenElse(a2, add(acc, w2, sanitizeTap(ld(p, 0, 1))), acc);
+        acc = hn::IfThenElse(a3, add(acc, w3, sanitizeTap(ld(p, 1, 1))), acc);
+        return hn::Mul(acc, inv);
+    };
+    using FusedSum = std::false_type;  // acc + wt * v in one rounding
+    using RoundedProduct = std::true_type;
+    auto radiance = [](VF v) HWY_ATTR { return simd::sanitize(v); };
+    // Planes that are not fed contribute wt * 0: the output is 0 wherever the kernel's result
+    // is kept.
+    if (R.hasC) {
+        VF col[3];
+        for (int c = 0; c < 3; ++c)
+            col[c] = S.pc[c] ? bilinear(S.pc[c], radiance, FusedSum{}) : zero;
+        if constexpr (CR) {
+            // Catmull-Rom 4x4 where all 16 taps are consistent, clamped to the inner 2x2 taps'
+            // range so negative lobes cannot ring. The outer 12 tests only where the inner
+            // four passed.
+            MF all16 = hn::And(hn::And(k00, k10), hn::And(k01, k11));
+            for (int j = -1; j <= 2 && !hn::AllFalse(d, all16); ++j)
+                for (int k = -1; k <= 2; ++k)
+                    if (j < 0 || j > 1 || k < 0 || k > 1) all16 = hn::And(all16, consistent(k, j));
+            if (!hn::AllFalse(d, all16)) {
+                VF wx[4], wy[4];
+                for (int k = 0; k < 4; ++k) {
+                    wx[k] = hn::LoadU(d, R.wx[k] + x);
+                    wy[k] = hn::LoadU(d, R.wy[k] + x);
+                }
+                for (int c = 0; c < 3; ++c) {
+                    VF s = zero, lo = hn::Set(d, 3e38f), hi = hn::Set(d, -3e38f);
+                    for (int j = 0; j < 4; ++j)
+                        for (int k = 0; k < 4; ++k) {
+                            const VF v = simd::sanitize(ld(S.pc[c], k - 1, j - 1));
+                            s = hn::MulAdd(hn::Mul(wx[k], wy[j]), v, s);
+                            if (j >= 1 && j <= 2 && k >= 1 && k <= 2) {
+                                lo = hn::IfThenElse(hn::Lt(v, lo), v, lo);  // std::min(lo, v)
+                                hi = hn::IfThenElse(hn::Lt(hi, v), v, hi);  // std::max(hi, v)
+                            }
+                        }
+                    // px::clamp(s, lo, hi) = std::min(std::max(s, lo), hi)
+                    const VF mx = hn::IfThenElse(hn::Lt(s, lo), lo, s);
+                    col[c] = hn::IfThenElse(all16, hn::IfThenElse(hn::Lt(hi, mx), hi, mx), col[c]);
                 }
             }
-        const bool all16 = (mask[x] & 0xffff) == 0xffff;
-        out[x] = all16 ? px::clamp(s, lo, hi) : out[x];
+        }
+        for (int c = 0; c < 3; ++c) hn::StoreU(col[c], d, R.oc[c] + x);
+    }
+    if (R.hasM) {
+        const VF m0 = S.pm[0] ? bilinear(S.pm[0], radiance, FusedSum{}) : zero;
+        const VF m1 =
+            S.pm[1] ? bilinear(
+                          S.pm[1], [](VF v) HWY_ATTR { return simd::sanitizePositive(v, 1e32f); },
+                          FusedSum{})
+                    : zero;
+        hn::StoreU(m0, d, R.om[0] + x);
+        hn::StoreU(m1, d, R.om[1] + x);
+    }
+    if (R.hasH) {
+        // Without prevHistoryLength every tap adds wt * 1 = wt: the sum is sw's, term by term.
+        const VF hl = S.ph
+                          ? bilinear(
+                                S.ph, [](VF v) HWY_ATTR { return simd::sanitizePositive(v, 1e6f); },
+                                RoundedProduct{})
+                          : hn::Mul(sw, inv);
+        hn::StoreU(hl, d, R.oh + x);
+    }
+}
+
+/// The kernel over one row: vectors at x = 0, n, 2n, ..., the last one moved left to end at the
+/// row's end (its overlap is computed twice, to the same values), so no lane is stored past the
+/// row. Rows narrower than a vector are left to reprojectPixel (their rFast is cleared).
+template <bool CR>
+void tapRow(const Sources& S, const RowTerms& R, int y, int32_t* rFast, const int32_t* rDx,
+            const int32_t* rDy) {
+    const DF d;
+    const DI di;
+    const int w = S.w, n = int(hn::Lanes(d));
+    if (w < n) {
+        std::fill(rFast, rFast + w, 0);
+        return;
+    }
+    const VI zeroI = hn::Zero(di);
+    // Lanes that do not take the kernel gather from a safe element (every tap offset of the
+    // footprint, -1..2 rows and columns, stays inside the image: w, h >= 4 when any lane is
+    // fast with Catmull-Rom, >= 2 with bilinear).
+    const VI safe = hn::Set(di, CR ? int32_t(w + 1) : 0);
+    for (int xs = 0;; xs += n) {
+        const int x = std::min(xs, w - n);
+        const MF fast = hn::RebindMask(d, hn::Ne(hn::LoadU(di, rFast + x), zeroI));
+        if (!hn::AllFalse(d, fast)) {
+            const VI dx = hn::LoadU(di, rDx + x), dy = hn::LoadU(di, rDy + x);
+            const int dx0 = rDx[x], dy0 = rDy[x];
+            if (hn::AllTrue(d, fast) && hn::AllTrue(di, hn::And(hn::Eq(dx, hn::Set(di, dx0)),
+                                                                hn::Eq(dy, hn::Set(di, dy0))))) {
+                const ptrdiff_t base = ptrdiff_t(y + dy0) * w + ptrdiff_t(x + dx0);
+                tapVector<true, CR>(S, R, x, base, zeroI);
+            } else {
+                const VI idx = hn::Add(hn::Mul(hn::Add(dy, hn::Set(di, y)), hn::Set(di, w)),
+                                       hn::Add(hn::Iota(di, x), dx));
+                tapVector<false, CR>(S, R, x, 0,
+                                     hn::IfThenElse(hn::RebindMask(di, fast), idx, safe));
+            }
+        }
+        if (x == w - n) break;
     }
 }
 
@@ -574,7 +560,7 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
     S.dThr = depthThreshold_;
     S.nThr = normalThreshold_;
     S.catmullRom = catmullRom_ && colorValid;
-    // Tap margin of the row kernel around (x0, y0): Catmull-Rom reads x0-1..x0+2.
+    // Tap margin of the tap kernel around (x0, y0): Catmull-Rom reads x0-1..x0+2.
     const bool cr = S.catmullRom;
     const int lo = cr ? 1 : 0, hi = cr ? 2 : 1;
 
@@ -582,52 +568,29 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
         // Local copies: int stores to the scratch rows could otherwise alias the captured
         // extent, and the row loops would not vectorise.
         const int w = S.w, h = S.h;
-        // Row scratch: float rows (derivatives, positions, fractions, kernel weights, output
-        // sinks, sanitised previous-frame rows) and int rows (tap offsets, flags, ids, masks).
-        // Rows are padded: the stages round runs up to whole vectors (see below).
-        constexpr int kF = 83, kI = 11, kPad = 32;
+        // Row scratch: float rows (derivatives, positions, fractions, weights, output sinks,
+        // this frame's sanitised geometry) and int rows (tap offsets, flags, ids). Rows are
+        // padded past the width.
+        constexpr int kF = 43, kI = 6, kPad = 32;
         const size_t ws = size_t(w) + kPad;
         Scratch& sc = tScratch;
-        sc.reserve(ws * kF, ws * kI, size_t(w) * 2);
+        sc.reserve(ws * kF, ws * kI, size_t(w));
         float* f = sc.f.data();
         auto frow = [&](int k) { return f + size_t(k) * ws; };
         float *rInvZ = frow(0), *rInvN = frow(1), *rn0 = frow(2), *rn1 = frow(3), *rn2 = frow(4),
               *rZRef = frow(5), *rPpx = frow(6), *rPpy = frow(7), *rFx = frow(8), *rFy = frow(9),
-              *rSumW = frow(10), *rInv = frow(11);
-        float* sink[6] = {frow(13), frow(14), frow(15), frow(16), frow(17), frow(18)};
+              *rSumW = frow(10);
+        float* sink[6] = {frow(11), frow(12), frow(13), frow(14), frow(15), frow(16)};
+        float *bw[4] = {frow(17), frow(18), frow(19), frow(20)},
+              *wx[4] = {frow(21), frow(22), frow(23), frow(24)},
+              *wy[4] = {frow(25), frow(26), frow(27), frow(28)};
         int32_t* iw = sc.i.data();
         auto irow = [&](int k) { return iw + size_t(k) * ws; };
         int32_t *rDx = irow(0), *rDy = irow(1), *rFast = irow(2), *rRefId = irow(3), *rOk = irow(4),
-                *rMask = irow(5), *zeroIds = irow(6);
-        int32_t* idsS[4] = {irow(7), irow(8), irow(9), irow(10)};  // the run's rows' ids
-        KernelRow K{rZRef,
-                    rn0,
-                    rn1,
-                    rn2,
-                    rInvZ,
-                    rInvN,
-                    rFx,
-                    rFy,
-                    rRefId,
-                    rMask,
-                    rSumW,
-                    rInv,
-                    {frow(19), frow(20), frow(21), frow(22)},
-                    {frow(23), frow(24), frow(25), frow(26)},
-                    {frow(27), frow(28), frow(29), frow(30)}};
-        // Sanitised previous-frame rows y0-1..y0+2 of the current run (same column indices as
-        // the planes): depth, normal, colour, moments, history length.
-        float *zs[4], *ns[3][4], *cs[3][4], *ms[2][4], *hs[4];
-        for (int j = 0; j < 4; ++j) {
-            zs[j] = frow(31 + j);
-            hs[j] = frow(35 + j);
-            for (int c = 0; c < 3; ++c) ns[c][j] = frow(39 + 4 * c + j);
-            for (int c = 0; c < 3; ++c) cs[c][j] = frow(51 + 4 * c + j);
-            for (int c = 0; c < 2; ++c) ms[c][j] = frow(63 + 4 * c + j);
-        }
+                *zeroIds = irow(5);
         // This frame's sanitised depth and normal, rows y-1..y+1 in a ring of three slots
         // (each element sanitised once, not once per derivative that reads it).
-        auto geomSlot = [&](int row, int plane) { return frow(71 + (row % 3) * 4 + plane); };
+        auto geomSlot = [&](int row, int plane) { return frow(31 + (row % 3) * 4 + plane); };
         auto sanitizeGeom = [&](int row) {
             const float* z = depth.row(0, row);
             float* zo = geomSlot(row, 0);
@@ -640,7 +603,7 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
         };
         if (ya > 0) sanitizeGeom(ya - 1);
         sanitizeGeom(ya);
-        uint8_t *brk = sc.b.data(), *redo = brk + w;  // run starts, per-pixel recomputation
+        uint8_t* redo = sc.b.data();  // per-pixel recomputation
         std::fill(zeroIds, zeroIds + w, 0);
 
         for (int y = ya; y < yb; ++y) {
@@ -703,7 +666,7 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
                     rOk[x] = 1;
                 }
             }
-            // Integer tap offsets and bilinear fractions; rFast: the row kernel can take the
+            // Integer tap offsets and bilinear fractions; rFast: the tap kernel can take the
             // pixel (valid position, every tap inside the image).
             const int32_t* refIds = ids ? ids + rowStart : zeroIds;
 #pragma GCC ivdep
@@ -727,84 +690,49 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
             for (int c = 0; c < 2; ++c) om[c] = outM ? outM->row(c, y) : sink[3 + c];
             oh = outH ? outH->row(0, y) : sink[5];
 
-            // Runs of pixels with one tap offset: brk marks where a run starts.
-            brk[0] = 1;
+            // Bilinear (and Catmull-Rom) weights of every pixel, then the tap kernel.
 #pragma GCC ivdep
-            for (int x = 1; x < w; ++x)
-                brk[x] =
-                    (rFast[x] != rFast[x - 1]) | (rDx[x] != rDx[x - 1]) | (rDy[x] != rDy[x - 1]);
-            for (int x = 0; x < w;) {
-                const int e = nextFlag(brk, x + 1, w);
-                if (rFast[x]) {
-                    const int dx = rDx[x], dy = rDy[x];
-                    size_t o[4];                 // previous-frame rows y0-1 .. y0+2
-                    for (int j = 0; j < 4; ++j)  // outside the kernel's margin: never read
-                        o[j] = size_t(std::clamp(y + dy - 1 + j, 0, h - 1)) * size_t(w);
-                    // Every stage runs over [x, eV), the run rounded up to whole vectors (no
-                    // scalar remainder loops); the extra lanes read padded scratch and write
-                    // pixels to the right that a later run or the per-pixel pass overwrites.
-                    const int up = x + ((e - x + 7) & ~7), eV = up <= w ? up : e;
-                    std::fill(rMask + x, rMask + eV, 0);
-                    // Columns the run's taps read (rounded up likewise), and its rows
-                    // (Catmull-Rom: all four).
-                    const int c0 = x + dx - lo, c1 = c0 + ((eV + dx + hi - c0 + 7) & ~7);
-                    const int j0 = cr ? 0 : 1, j1 = cr ? 3 : 2;
-                    for (int j = j0; j <= j1; ++j) {
-                        geometrySegment(c0, c1, w, S.pz + o[j], S.pn[0] + o[j], S.pn[1] + o[j],
-                                        S.pn[2] + o[j], S.pIds ? S.pIds + o[j] : nullptr, zs[j],
-                                        ns[0][j], ns[1][j], ns[2][j], idsS[j]);
-                        if (cr)
-                            consistencyRow<-1, 4>(x, eV, dx, 4 * j, zs[j], ns[0][j], ns[1][j],
-                                                  ns[2][j], idsS[j], K, S.dThr, S.nThr);
-                        else
-                            consistencyRow<0, 2>(x, eV, dx, 4 * j + 1, zs[j], ns[0][j], ns[1][j],
-                                                 ns[2][j], idsS[j], K, S.dThr, S.nThr);
-                    }
-                    if (cr)
-                        weightsRow<true>(x, eV, K);
-                    else
-                        weightsRow<false>(x, eV, K);
-                    // One output plane. Planes that are not fed contribute wt * 0 (colour,
-                    // moments): the output is 0 * (1 / sumW) = 0 wherever the kernel's result
-                    // is kept.
-                    auto plane = [&](const float* p, float* const* sanRows, float* out, auto kind) {
-                        if (!p) {
-                            std::fill(out + x, out + e, 0.f);
-                            return;
-                        }
-                        constexpr Sanitize k = decltype(kind)::value;
-                        for (int j = (k == Sanitize::Radiance && cr ? 0 : 1);
-                             j <= (k == Sanitize::Radiance && cr ? 3 : 2); ++j)
-                            sanitizeSegment<k>(c0, c1, w, p + o[j], sanRows[j]);
-                        bilinearPlaneRow<k == Sanitize::Length>(x, eV, dx, sanRows[1], sanRows[2],
-                                                                K, out);
-                    };
-                    using Rad = std::integral_constant<Sanitize, Sanitize::Radiance>;
-                    using Mo1 = std::integral_constant<Sanitize, Sanitize::Moment1>;
-                    using Mo2 = std::integral_constant<Sanitize, Sanitize::Moment2>;
-                    using Len = std::integral_constant<Sanitize, Sanitize::Length>;
-                    if (outC)
-                        for (int c = 0; c < 3; ++c) {
-                            plane(S.pc[c], cs[c], oc[c], Rad{});
-                            if (cr && S.pc[c]) catmullRomPlaneRow(x, eV, dx, cs[c], K, oc[c]);
-                        }
-                    if (outM) {
-                        plane(S.pm[0], ms[0], om[0], Mo1{});
-                        plane(S.pm[1], ms[1], om[1], Mo2{});
-                    }
-                    if (outH) {
-                        if (S.ph) {
-                            plane(S.ph, hs, oh, Len{});
-                        } else {
-                            // Without prevHistoryLength every tap adds wt * 1 = wt: the sum is
-                            // sumW's, term by term.
-                            for (int i = x; i < eV; ++i) oh[i] = rSumW[i] * rInv[i];
-                        }
+            for (int x = 0; x < w; ++x) {
+                const float fx = rFx[x], fy = rFy[x];
+                bw[0][x] = (1 - fx) * (1 - fy);
+                bw[1][x] = fx * (1 - fy);
+                bw[2][x] = (1 - fx) * fy;
+                bw[3][x] = fx * fy;
+            }
+            if (cr) {
+#pragma GCC ivdep
+                for (int x = 0; x < w; ++x) {
+                    float cx[4], cy[4];
+                    catmullRomWeights(rFx[x], cx);
+                    catmullRomWeights(rFy[x], cy);
+                    for (int k = 0; k < 4; ++k) {
+                        wx[k][x] = cx[k];
+                        wy[k][x] = cy[k];
                     }
                 }
-                x = e;
             }
-            // Everything else, and the kernel's 3x3-fallback pixels, per pixel.
+            const RowTerms R{rZRef,
+                             rn0,
+                             rn1,
+                             rn2,
+                             rInvZ,
+                             rInvN,
+                             {bw[0], bw[1], bw[2], bw[3]},
+                             {wx[0], wx[1], wx[2], wx[3]},
+                             {wy[0], wy[1], wy[2], wy[3]},
+                             rRefId,
+                             rSumW,
+                             {oc[0], oc[1], oc[2]},
+                             {om[0], om[1]},
+                             oh,
+                             outC != nullptr,
+                             outM != nullptr,
+                             outH != nullptr};
+            if (cr)
+                tapRow<true>(S, R, y, rFast, rDx, rDy);
+            else
+                tapRow<false>(S, R, y, rFast, rDx, rDy);
+                // Everything else, and the kernel's 3x3-fallback pixels, per pixel.
 #pragma GCC ivdep
             for (int x = 0; x < w; ++x) redo[x] = (rFast[x] == 0) | (rSumW[x] < 1e-4f);
             for (int x = nextFlag(redo, 0, w); x < w; x = nextFlag(redo, x + 1, w)) {

@@ -1,9 +1,11 @@
 #pragma once
 // Vector forms of PixelMath's helpers, for kernels written with Google Highway (static dispatch:
 // the build's -march chooses the widest instruction set, AVX-512 or AVX2 here, SSE2 anywhere).
-// Each function evaluates the same formula as its scalar namesake in PixelMath.h; the vector
-// forms use fused multiply-add where the scalar ones (built with -ffp-contract=off by ISO C++)
-// do not, so results differ from the scalar ones by a few ulp, never more.
+// Each function evaluates the same formula as its scalar namesake in PixelMath.h. The vector
+// forms spell out their fused multiply-adds; in the scalar ones GCC decides (it contracts a * b + c
+// by default in C++, even with -std=c++20, unlike ISO C), so results may differ from the scalar
+// ones by a few ulp, never more. A kernel that must match a scalar reference bit for bit writes
+// MulAdd where the reference is contracted and Mul + Add where it is not (Reprojection does).
 //
 // Header-only; a pass that includes it links hwy::hwy (the framework itself does not).
 
