@@ -4,6 +4,8 @@
 #include <kestrel/Scratch.h>
 #include <kestrel/SimdMath.h>
 
+#include <vector>
+
 #include "VarianceReference.h"
 
 using namespace kestrel;
@@ -115,29 +117,28 @@ void estimatePixel(const Inputs& in, int x, int y, float hl, float* c3, float* v
     *v = std::max(0.f, m2 - m1 * m1) * (4.f / std::max(hl, 1.f));
 }
 
-/// Sanitised copies of one band's rows (and the 3 rows its taps reach above and below):
-/// the 7x7 taps then load plain values instead of sanitising each of 49 reads.
+/// Sanitised copies of columns [c0, c1) of one band's rows (and the 3 rows its taps reach above
+/// and below): the 7x7 taps then load plain values instead of sanitising each of 49 reads.
 enum Plane { R, G, B, L, Z, NX, NY, NZ, M1, M2, kPlaneCount };
 
-void prepareRow(const Inputs& in, int y, float* const* P, size_t o) {
-    const int w = in.w;
+void prepareRow(const Inputs& in, int y, float* const* P, size_t o, int c0, int c1) {
     for (int c = 0; c < 3; ++c) {
         const float* src = in.color->row(c, y);
         float* dst = P[R + c] + o;
-        for (int x = 0; x < w; ++x) dst[x] = px::sanitize(src[x]);
+        for (int x = c0; x < c1; ++x) dst[x] = px::sanitize(src[x]);
         const float* n = in.normal->row(c, y);
         float* nd = P[NX + c] + o;
-        for (int x = 0; x < w; ++x) nd[x] = px::sanitizeNormal(n[x]);
+        for (int x = c0; x < c1; ++x) nd[x] = px::sanitizeNormal(n[x]);
     }
     const float* z = in.depth->row(0, y);
     const float* m1 = in.moments->row(0, y);
     const float* m2 = in.moments->row(1, y);
     float *pz = P[Z] + o, *pm1 = P[M1] + o, *pm2 = P[M2] + o, *pl = P[L] + o;
     const float *r = P[R] + o, *g = P[G] + o, *b = P[B] + o;
-    for (int x = 0; x < w; ++x) pz[x] = px::sanitizeDepth(z[x]);
-    for (int x = 0; x < w; ++x) pm1[x] = px::sanitize(m1[x]);
-    for (int x = 0; x < w; ++x) pm2[x] = px::sanitizePositive(m2[x], 1e32f);
-    for (int x = 0; x < w; ++x) pl[x] = px::luminance(r[x], g[x], b[x]);
+    for (int x = c0; x < c1; ++x) pz[x] = px::sanitizeDepth(z[x]);
+    for (int x = c0; x < c1; ++x) pm1[x] = px::sanitize(m1[x]);
+    for (int x = c0; x < c1; ++x) pm2[x] = px::sanitizePositive(m2[x], 1e32f);
+    for (int x = c0; x < c1; ++x) pl[x] = px::luminance(r[x], g[x], b[x]);
 }
 
 /// The same estimate for the lanes of one vector at (x0.., y), all taps inside the row range
@@ -260,17 +261,26 @@ void VarianceEstimationPass::execute(FrameContext& ctx, PassIO& io) {
         return;
     }
 
-    // Bands of rows, each with private scratch for its prepared rows (ScratchPool): prepared
-    // only if some pixel of the band has a short history, which in steady state is a minority.
+    // Bands of rows, each with private scratch for its prepared rows (ScratchPool). The rows are
+    // split into blocks of one vector (the vector path's pixels x = 3 + k n .. 3 + (k + 1) n);
+    // only the columns of blocks holding a pixel with a short history are prepared, which in
+    // steady state is a few percent (disocclusions), not every band as soon as one pixel of it
+    // is short (a pan disoccludes a column at the image's edge in every band). Which pixels
+    // take which path depends only on the width, never on the thread count or the banding.
     constexpr int kBand = 32;
     const int bands = (in.h + kBand - 1) / kBand;
     const size_t bandPixels = size_t(std::min(in.h, kBand + 2 * kRadius)) * size_t(w);
+    const int blocks = w >= 2 * kRadius + n ? (w - 2 * kRadius) / n : 0;
+    const int scalarFrom = kRadius + blocks * n;  // the row's tail: plain scalar code
     ctx.parallel->forRange(
         0, bands,
         [&](int i0, int i1) {
+            std::vector<uint8_t> need(static_cast<size_t>(blocks));
             for (int i = i0; i < i1; ++i) {
                 const int y0 = i * kBand, y1 = std::min(in.h, y0 + kBand);
-                bool anyShort = false;
+                std::fill(need.begin(), need.end(), uint8_t(0));
+                bool anyBlock = false, anyScalar = false;
+                const VF minH = hn::Set(d, minHist);
                 for (int y = y0; y < y1; ++y) {
                     float* oc[3] = {outC.row(0, y), outC.row(1, y), outC.row(2, y)};
                     const float* hrow = in.hist->row(0, y);
@@ -284,41 +294,67 @@ void VarianceEstimationPass::execute(FrameContext& ctx, PassIO& io) {
                         float* ov = outV->row(0, y);
                         for (int x = 0; x < w; ++x) ov[x] = px::sanitizePositive(src[x], 1e32f);
                     }
-                    bool rowShort = false;
-                    for (int x = 0; x < w; ++x)
-                        rowShort |= !(px::sanitizePositive(hrow[x], 1e6f) >= minHist);
-                    anyShort |= rowShort;
+                    auto isShort = [&](int x) {
+                        return !(px::sanitizePositive(hrow[x], 1e6f) >= minHist);
+                    };
+                    for (int x = 0; x < std::min(kRadius, w); ++x) anyScalar |= isShort(x);
+                    for (int x = scalarFrom; x < w; ++x) anyScalar |= isShort(x);
+                    for (int k = 0; k < blocks; ++k) {
+                        const VF hl =
+                            simd::sanitizePositive(hn::LoadU(d, hrow + kRadius + k * n), 1e6f);
+                        const bool s = !hn::AllFalse(d, hn::Lt(hl, minH));
+                        need[size_t(k)] |= uint8_t(s);
+                        anyBlock |= s;
+                    }
                 }
-                if (!anyShort) continue;
-                // Then the spatial estimate where the history is short: whole vectors where all
-                // taps are inside the row, single pixels at the borders. Which pixels take which
-                // path depends only on the width, never on the thread count or the banding.
+                if (anyScalar) {  // border pixels read the inputs directly
+                    for (int y = y0; y < y1; ++y) {
+                        float* oc[3] = {outC.row(0, y), outC.row(1, y), outC.row(2, y)};
+                        float* ov = outV ? outV->row(0, y) : nullptr;
+                        const float* hrow = in.hist->row(0, y);
+                        auto scalarAt = [&](int x) {
+                            const float hl = px::sanitizePositive(hrow[x], 1e6f);
+                            if (hl >= minHist) return;
+                            float c3[3], v;
+                            estimatePixel(in, x, y, hl, c3, &v);
+                            for (int c = 0; c < 3; ++c) oc[c][x] = c3[c];
+                            if (ov) ov[x] = v;
+                        };
+                        for (int x = 0; x < std::min(kRadius, w); ++x) scalarAt(x);
+                        for (int x = std::max(scalarFrom, kRadius); x < w; ++x) scalarAt(x);
+                    }
+                }
+                if (!anyBlock) continue;
+                // The vector path: prepare the needed blocks' columns (with the taps' reach of
+                // 3 on either side) for the band's rows and halo, then estimate block by block.
                 const int base = std::max(0, y0 - kRadius), p1 = std::min(in.h, y1 + kRadius);
                 auto lease = ScratchPool::acquire(kPlaneCount, bandPixels);
                 float* P[kPlaneCount];
                 for (int k = 0; k < kPlaneCount; ++k) P[k] = lease[size_t(k)];
-                for (int y = base; y < p1; ++y) prepareRow(in, y, P, size_t(y - base) * size_t(w));
+                for (int k0 = 0; k0 < blocks;) {
+                    if (!need[size_t(k0)]) {
+                        ++k0;
+                        continue;
+                    }
+                    int k1 = k0 + 1;
+                    while (k1 < blocks && need[size_t(k1)]) ++k1;
+                    for (int y = base; y < p1; ++y)
+                        prepareRow(in, y, P, size_t(y - base) * size_t(w), k0 * n,
+                                   k1 * n + 2 * kRadius);
+                    k0 = k1;
+                }
                 for (int y = y0; y < y1; ++y) {
                     float* oc[3] = {outC.row(0, y), outC.row(1, y), outC.row(2, y)};
                     float* ov = outV ? outV->row(0, y) : nullptr;
                     const float* hrow = in.hist->row(0, y);
-                    auto scalarAt = [&](int x) {
-                        const float hl = px::sanitizePositive(hrow[x], 1e6f);
-                        if (hl >= minHist) return;
-                        float c3[3], v;
-                        estimatePixel(in, x, y, hl, c3, &v);
-                        for (int c = 0; c < 3; ++c) oc[c][x] = c3[c];
-                        if (ov) ov[x] = v;
-                    };
-                    int x = 0;
-                    for (; x < std::min(kRadius, w); ++x) scalarAt(x);
-                    for (; x + n + kRadius <= w; x += n) {
+                    for (int k = 0; k < blocks; ++k) {
+                        if (!need[size_t(k)]) continue;
+                        const int x = kRadius + k * n;
                         const VF hl = simd::sanitizePositive(hn::LoadU(d, hrow + x), 1e6f);
-                        const MF need = hn::Lt(hl, hn::Set(d, minHist));
-                        if (hn::AllFalse(d, need)) continue;
-                        estimateBlock(in, P, base, x, y, hl, need, oc, ov);
+                        const MF needLanes = hn::Lt(hl, minH);
+                        if (hn::AllFalse(d, needLanes)) continue;
+                        estimateBlock(in, P, base, x, y, hl, needLanes, oc, ov);
                     }
-                    for (; x < w; ++x) scalarAt(x);
                 }
             }
         },
