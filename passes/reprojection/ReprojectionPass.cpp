@@ -190,7 +190,8 @@ struct Sources {
     const float *pz = nullptr, *pn[3] = {};
     const int32_t* pIds = nullptr;  ///< null without ids (every id test passes)
     const float *pc[3] = {}, *pm[2] = {}, *ph = nullptr;  ///< null when not fed
-    float dThr = 0, nThr = 0;
+    float dThr = 0;
+    float nThr2 = 0;  ///< the normal threshold squared (the test compares squared distances)
     bool catmullRom = false;  ///< Catmull-Rom resampling in effect (filter and prevColor)
 };
 
@@ -221,7 +222,7 @@ PixelOut reprojectPixel(const Sources& S, const PixelRef& P) {
             const float dn = nn[c] - px::sanitizeNormal(S.pn[c][t]);
             dn2 += dn * dn;
         }
-        return (id == P.refId) & !(dz > S.dThr) & (std::sqrt(dn2) * P.invN <= S.nThr);
+        return (id == P.refId) & !(dz > S.dThr) & (dn2 * (P.invN * P.invN) <= S.nThr2);
     };
     float acc[3] = {0, 0, 0}, accM[2] = {0, 0}, accH = 0, sumW = 0;
     auto addTap = [&](int tx, int ty, float wt) {
@@ -346,16 +347,18 @@ HWY_INLINE void tapVector(const Sources& S, const RowTerms& R, int x, ptrdiff_t 
     const VF zR = hn::LoadU(d, R.zRef + x), c0 = hn::LoadU(d, R.n0 + x),
              c1 = hn::LoadU(d, R.n1 + x), c2 = hn::LoadU(d, R.n2 + x);
     const VF iz = hn::LoadU(d, R.invZ + x), in = hn::LoadU(d, R.invN + x);
+    const VF in2 = hn::Mul(in, in);
     const VI rid = hn::LoadU(di, R.refId + x);
-    const VF dThr = hn::Set(d, S.dThr), nThr = hn::Set(d, S.nThr), zero = hn::Zero(d);
-    // The consistency test of the tap at (x0 + k, y0 + j) (SVGF; Falcor's isReprjValid).
+    const VF dThr = hn::Set(d, S.dThr), nThr2 = hn::Set(d, S.nThr2), zero = hn::Zero(d);
+    // The consistency test of the tap at (x0 + k, y0 + j) (SVGF; Falcor's isReprjValid), the
+    // normal distance compared squared: no square root per tap.
     auto consistent = [&](int k, int j) HWY_ATTR {
         const VF dz = hn::Mul(hn::Abs(hn::Sub(zR, simd::sanitizeDepth(ld(S.pz, k, j)))), iz);
         const VF d0 = hn::Sub(c0, simd::sanitizeNormal(ld(S.pn[0], k, j)));
         const VF d1 = hn::Sub(c1, simd::sanitizeNormal(ld(S.pn[1], k, j)));
         const VF d2 = hn::Sub(c2, simd::sanitizeNormal(ld(S.pn[2], k, j)));
         const VF dn2 = hn::MulAdd(d2, d2, hn::MulAdd(d1, d1, hn::Mul(d0, d0)));
-        MF ok = hn::AndNot(hn::Gt(dz, dThr), hn::Le(hn::Mul(hn::Sqrt(dn2), in), nThr));
+        MF ok = hn::AndNot(hn::Gt(dz, dThr), hn::Le(hn::Mul(dn2, in2), nThr2));
         if (S.pIds) ok = hn::And(ok, hn::RebindMask(d, hn::Eq(ldId(k, j), rid)));
         return ok;
     };
@@ -558,7 +561,7 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
         for (int c = 0; c < 2; ++c) S.pm[c] = io.input("prevMoments").channel(c);
     if (hlValid) S.ph = io.input("prevHistoryLength").channel(0);
     S.dThr = depthThreshold_;
-    S.nThr = normalThreshold_;
+    S.nThr2 = normalThreshold_ * normalThreshold_;
     S.catmullRom = catmullRom_ && colorValid;
     // Tap margin of the tap kernel around (x0, y0): Catmull-Rom reads x0-1..x0+2.
     const bool cr = S.catmullRom;

@@ -144,7 +144,8 @@ inline Outputs reproject(const Inputs& in, const Params& p) {
                     const float dn = n[c] - px::sanitizeNormal(pNormal.at(c, tx, ty));
                     dn2 += dn * dn;
                 }
-                return std::sqrt(dn2) * invN <= nThr;
+                // |n - n_prev| * invN <= nThr, squared (no square root per tap).
+                return dn2 * (invN * invN) <= nThr * nThr;
             };
 
             float acc[3] = {0, 0, 0}, accM[2] = {0, 0}, accH = 0, sumW = 0;
