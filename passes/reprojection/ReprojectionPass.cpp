@@ -156,32 +156,34 @@ __attribute__((always_inline)) inline void derivativesAt(const GeomRows& g, int 
     invN[x] = 1.f / (fwN + 1e-2f);
 }
 
-// One row of derivatives: the two end pixels separately, the interior in a loop with fixed
-// neighbours (contiguous loads, no selects), which the compiler vectorises.
+// Derivatives of pixels [a, b) of one row: the row's two end pixels separately, the interior in
+// a loop with fixed neighbours (contiguous loads, no selects), which the compiler vectorises.
 template <bool U, bool D>
-void rowDerivativesT(const GeomRows& rows, int w, float* __restrict invZ, float* __restrict invN,
-                     float* __restrict n0, float* __restrict n1, float* __restrict n2) {
+void rowDerivativesT(const GeomRows& rows, int w, int a, int b, float* __restrict invZ,
+                     float* __restrict invN, float* __restrict n0, float* __restrict n1,
+                     float* __restrict n2) {
     const GeomRows g = rows;  // a local copy: the row pointers stay in registers
     if (w == 1) {
         derivativesAt<false, false, U, D>(g, 0, invZ, invN, n0, n1, n2);
         return;
     }
-    derivativesAt<false, true, U, D>(g, 0, invZ, invN, n0, n1, n2);
+    if (a == 0) derivativesAt<false, true, U, D>(g, 0, invZ, invN, n0, n1, n2);
+    const int i0 = std::max(a, 1), i1 = std::min(b, w - 1);
 #pragma GCC ivdep
-    for (int x = 1; x < w - 1; ++x) derivativesAt<true, true, U, D>(g, x, invZ, invN, n0, n1, n2);
-    derivativesAt<true, false, U, D>(g, w - 1, invZ, invN, n0, n1, n2);
+    for (int x = i0; x < i1; ++x) derivativesAt<true, true, U, D>(g, x, invZ, invN, n0, n1, n2);
+    if (b == w) derivativesAt<true, false, U, D>(g, w - 1, invZ, invN, n0, n1, n2);
 }
 
-void rowDerivatives(const GeomRows& g, bool u, bool d, int w, float* invZ, float* invN, float* n0,
-                    float* n1, float* n2) {
+void rowDerivatives(const GeomRows& g, bool u, bool d, int w, int a, int b, float* invZ,
+                    float* invN, float* n0, float* n1, float* n2) {
     if (u && d)
-        rowDerivativesT<true, true>(g, w, invZ, invN, n0, n1, n2);
+        rowDerivativesT<true, true>(g, w, a, b, invZ, invN, n0, n1, n2);
     else if (u)
-        rowDerivativesT<true, false>(g, w, invZ, invN, n0, n1, n2);
+        rowDerivativesT<true, false>(g, w, a, b, invZ, invN, n0, n1, n2);
     else if (d)
-        rowDerivativesT<false, true>(g, w, invZ, invN, n0, n1, n2);
+        rowDerivativesT<false, true>(g, w, a, b, invZ, invN, n0, n1, n2);
     else
-        rowDerivativesT<false, false>(g, w, invZ, invN, n0, n1, n2);
+        rowDerivativesT<false, false>(g, w, a, b, invZ, invN, n0, n1, n2);
 }
 
 // Every plane the taps read, and the parameters of the consistency test.
@@ -455,26 +457,22 @@ HWY_INLINE void tapVector(const Sources& S, const RowTerms& R, int x, ptrdiff_t 
     }
 }
 
-/// The kernel over one row: vectors at x = 0, n, 2n, ..., the last one moved left to end at the
-/// row's end (its overlap is computed twice, to the same values), so no lane is stored past the
-/// row. Rows narrower than a vector are left to reprojectPixel (their rFast is cleared).
+/// The kernel over pixels [a, b) of one row (b - a >= one vector): vectors at x = a, a + n, ...,
+/// the last one moved left to end at b (its overlap is computed twice, to the same values), so
+/// no lane is stored past the range.
 template <bool CR>
-void tapRow(const Sources& S, const RowTerms& R, int y, int32_t* rFast, const int32_t* rDx,
-            const int32_t* rDy) {
+void tapRow(const Sources& S, const RowTerms& R, int y, int a, int b, const int32_t* rFast,
+            const int32_t* rDx, const int32_t* rDy) {
     const DF d;
     const DI di;
     const int w = S.w, n = int(hn::Lanes(d));
-    if (w < n) {
-        std::fill(rFast, rFast + w, 0);
-        return;
-    }
     const VI zeroI = hn::Zero(di);
     // Lanes that do not take the kernel gather from a safe element (every tap offset of the
     // footprint, -1..2 rows and columns, stays inside the image: w, h >= 4 when any lane is
     // fast with Catmull-Rom, >= 2 with bilinear).
     const VI safe = hn::Set(di, CR ? int32_t(w + 1) : 0);
-    for (int xs = 0;; xs += n) {
-        const int x = std::min(xs, w - n);
+    for (int xs = a;; xs += n) {
+        const int x = std::min(xs, b - n);
         const MF fast = hn::RebindMask(d, hn::Ne(hn::LoadU(di, rFast + x), zeroI));
         if (!hn::AllFalse(d, fast)) {
             const VI dx = hn::LoadU(di, rDx + x), dy = hn::LoadU(di, rDy + x);
@@ -490,7 +488,7 @@ void tapRow(const Sources& S, const RowTerms& R, int y, int32_t* rFast, const in
                                      hn::IfThenElse(hn::RebindMask(di, fast), idx, safe));
             }
         }
-        if (x == w - n) break;
+        if (x == b - n) break;
     }
 }
 
@@ -574,7 +572,7 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
         // Row scratch: float rows (derivatives, positions, fractions, weights, output sinks,
         // this frame's sanitised geometry) and int rows (tap offsets, flags, ids). Rows are
         // padded past the width.
-        constexpr int kF = 43, kI = 6, kPad = 32;
+        constexpr int kF = 43, kI = 6, kPad = 32, kTile = 256;
         const size_t ws = size_t(w) + kPad;
         Scratch& sc = tScratch;
         sc.reserve(ws * kF, ws * kI, size_t(w));
@@ -619,101 +617,13 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
                 g.z[j] = geomSlot(yy, 0);
                 for (int c = 0; c < 3; ++c) g.n[c][j] = geomSlot(yy, 1 + c);
             }
-            rowDerivatives(g, u, d, w, rInvZ, rInvN, rn0, rn1, rn2);
             const size_t rowStart = size_t(y) * size_t(w);
             const float* zRow = geomSlot(y, 0);  // sanitised (sanitizeDepth is idempotent)
-            // Previous-frame position in continuous pixel coordinates (centres at +0.5);
-            // rOk holds 0 where the position is unusable (no surface on the matrix path).
-            if (motion) {
-                const float *mx = motion->row(0, y), *my = motion->row(1, y);
-                const float fy0 = float(y) + 0.5f;
-#pragma GCC ivdep
-                for (int x = 0; x < w; ++x) {
-                    rPpx[x] = (float(x) + 0.5f) + mx[x];
-                    rPpy[x] = fy0 + my[x];
-                    rZRef[x] = px::sanitizeDepth(zRow[x]);
-                    rOk[x] = 1;
-                }
-            } else if (matrices) {
-                for (int x = 0; x < w; ++x) {
-                    float ppx = float(x) + 0.5f, ppy = float(y) + 0.5f;
-                    float zRef = px::sanitizeDepth(zRow[x]);
-                    bool ok = true;
-                    const int32_t id = curIds ? curIds[rowStart + size_t(x)] : 0;
-                    if (zRef >= kBackgroundDepth || (curIds && id == kBackgroundId)) {
-                        ok = false;  // no surface position to reproject
-                    } else {
-                        const ObjectTransforms& t = curIds ? table->get(id) : table->fallback();
-                        Vec3 p{position->at(0, x, y), position->at(1, x, y), position->at(2, x, y)};
-                        Vec4 s = t.toPrevPixel.transformPoint(p);
-                        Vec4 c = t.toPrevCamera.transformPoint(p);
-                        ok = s.w > 1e-20f;
-                        if (ok) {
-                            ppx = s.x / s.w;
-                            ppy = s.y / s.w;
-                            zRef = -c.z;  // the point's depth last frame (camera looks down -Z)
-                        }
-                    }
-                    rPpx[x] = ppx;
-                    rPpy[x] = ppy;
-                    rZRef[x] = zRef;
-                    rOk[x] = ok;
-                }
-            } else {
-                const float fy0 = float(y) + 0.5f;
-#pragma GCC ivdep
-                for (int x = 0; x < w; ++x) {
-                    rPpx[x] = float(x) + 0.5f;
-                    rPpy[x] = fy0;
-                    rZRef[x] = px::sanitizeDepth(zRow[x]);
-                    rOk[x] = 1;
-                }
-            }
-            // Integer tap offsets and bilinear fractions; rFast: the tap kernel can take the
-            // pixel (valid position, every tap inside the image).
             const int32_t* refIds = ids ? ids + rowStart : zeroIds;
-#pragma GCC ivdep
-            for (int x = 0; x < w; ++x) {
-                const float ppx = rPpx[x], ppy = rPpy[x];
-                // NaN, Inf or absurd positions: disoccluded (also guards the int conversions).
-                const bool ok = (rOk[x] != 0) & (std::fabs(ppx) < 1e7f) & (std::fabs(ppy) < 1e7f);
-                const float bx = ok ? ppx - 0.5f : 0.f, by = ok ? ppy - 0.5f : 0.f;
-                const int x0 = int(std::floor(bx)), y0 = int(std::floor(by));
-                rFx[x] = bx - float(x0);
-                rFy[x] = by - float(y0);
-                rDx[x] = x0 - x;
-                rDy[x] = y0 - y;
-                rFast[x] = ok & (x0 - lo >= 0) & (x0 + hi < w) & (y0 - lo >= 0) & (y0 + hi < h);
-                rRefId[x] = refIds[x];
-                rOk[x] = ok;
-            }
-
             float *oc[3], *om[2], *oh;  // output rows (absent outputs: scratch sinks)
             for (int c = 0; c < 3; ++c) oc[c] = outC ? outC->row(c, y) : sink[c];
             for (int c = 0; c < 2; ++c) om[c] = outM ? outM->row(c, y) : sink[3 + c];
             oh = outH ? outH->row(0, y) : sink[5];
-
-            // Bilinear (and Catmull-Rom) weights of every pixel, then the tap kernel.
-#pragma GCC ivdep
-            for (int x = 0; x < w; ++x) {
-                const float fx = rFx[x], fy = rFy[x];
-                bw[0][x] = (1 - fx) * (1 - fy);
-                bw[1][x] = fx * (1 - fy);
-                bw[2][x] = (1 - fx) * fy;
-                bw[3][x] = fx * fy;
-            }
-            if (cr) {
-#pragma GCC ivdep
-                for (int x = 0; x < w; ++x) {
-                    float cx[4], cy[4];
-                    catmullRomWeights(rFx[x], cx);
-                    catmullRomWeights(rFy[x], cy);
-                    for (int k = 0; k < 4; ++k) {
-                        wx[k][x] = cx[k];
-                        wy[k][x] = cy[k];
-                    }
-                }
-            }
             const RowTerms R{rZRef,
                              rn0,
                              rn1,
@@ -731,11 +641,109 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
                              outC != nullptr,
                              outM != nullptr,
                              outH != nullptr};
-            if (cr)
-                tapRow<true>(S, R, y, rFast, rDx, rDy);
-            else
-                tapRow<false>(S, R, y, rFast, rDx, rDy);
-                // Everything else, and the kernel's 3x3-fallback pixels, per pixel.
+            // The row in tiles of kTile pixels (the last one takes the remainder): each stage's
+            // slice of the row scratch then stays in the L1 cache from one stage to the next.
+            // Rows narrower than a vector are left to reprojectPixel.
+            const bool vectors = w >= int(hn::Lanes(DF()));
+            for (int a = 0, b = 0; a < w; a = b) {
+                b = w - a < 2 * kTile ? w : a + kTile;
+                rowDerivatives(g, u, d, w, a, b, rInvZ, rInvN, rn0, rn1, rn2);
+                // Previous-frame position in continuous pixel coordinates (centres at +0.5);
+                // rOk holds 0 where the position is unusable (no surface on the matrix path).
+                if (motion) {
+                    const float *mx = motion->row(0, y), *my = motion->row(1, y);
+                    const float fy0 = float(y) + 0.5f;
+#pragma GCC ivdep
+                    for (int x = a; x < b; ++x) {
+                        rPpx[x] = (float(x) + 0.5f) + mx[x];
+                        rPpy[x] = fy0 + my[x];
+                        rZRef[x] = px::sanitizeDepth(zRow[x]);
+                        rOk[x] = 1;
+                    }
+                } else if (matrices) {
+                    for (int x = a; x < b; ++x) {
+                        float ppx = float(x) + 0.5f, ppy = float(y) + 0.5f;
+                        float zRef = px::sanitizeDepth(zRow[x]);
+                        bool ok = true;
+                        const int32_t id = curIds ? curIds[rowStart + size_t(x)] : 0;
+                        if (zRef >= kBackgroundDepth || (curIds && id == kBackgroundId)) {
+                            ok = false;  // no surface position to reproject
+                        } else {
+                            const ObjectTransforms& t = curIds ? table->get(id) : table->fallback();
+                            Vec3 p{position->at(0, x, y), position->at(1, x, y),
+                                   position->at(2, x, y)};
+                            Vec4 s = t.toPrevPixel.transformPoint(p);
+                            Vec4 c = t.toPrevCamera.transformPoint(p);
+                            ok = s.w > 1e-20f;
+                            if (ok) {
+                                ppx = s.x / s.w;
+                                ppy = s.y / s.w;
+                                zRef = -c.z;  // the point's depth last frame (camera looks down -Z)
+                            }
+                        }
+                        rPpx[x] = ppx;
+                        rPpy[x] = ppy;
+                        rZRef[x] = zRef;
+                        rOk[x] = ok;
+                    }
+                } else {
+                    const float fy0 = float(y) + 0.5f;
+#pragma GCC ivdep
+                    for (int x = a; x < b; ++x) {
+                        rPpx[x] = float(x) + 0.5f;
+                        rPpy[x] = fy0;
+                        rZRef[x] = px::sanitizeDepth(zRow[x]);
+                        rOk[x] = 1;
+                    }
+                }
+                // Integer tap offsets and bilinear fractions; rFast: the tap kernel can take the
+                // pixel (valid position, every tap inside the image).
+#pragma GCC ivdep
+                for (int x = a; x < b; ++x) {
+                    const float ppx = rPpx[x], ppy = rPpy[x];
+                    // NaN, Inf or absurd positions: disoccluded (also guards the int conversions).
+                    const bool ok =
+                        (rOk[x] != 0) & (std::fabs(ppx) < 1e7f) & (std::fabs(ppy) < 1e7f);
+                    const float bx = ok ? ppx - 0.5f : 0.f, by = ok ? ppy - 0.5f : 0.f;
+                    const int x0 = int(std::floor(bx)), y0 = int(std::floor(by));
+                    rFx[x] = bx - float(x0);
+                    rFy[x] = by - float(y0);
+                    rDx[x] = x0 - x;
+                    rDy[x] = y0 - y;
+                    rFast[x] = ok & (x0 - lo >= 0) & (x0 + hi < w) & (y0 - lo >= 0) & (y0 + hi < h);
+                    rRefId[x] = refIds[x];
+                    rOk[x] = ok;
+                }
+
+                // Bilinear (and Catmull-Rom) weights of every pixel, then the tap kernel.
+#pragma GCC ivdep
+                for (int x = a; x < b; ++x) {
+                    const float fx = rFx[x], fy = rFy[x];
+                    bw[0][x] = (1 - fx) * (1 - fy);
+                    bw[1][x] = fx * (1 - fy);
+                    bw[2][x] = (1 - fx) * fy;
+                    bw[3][x] = fx * fy;
+                }
+                if (cr) {
+#pragma GCC ivdep
+                    for (int x = a; x < b; ++x) {
+                        float cx[4], cy[4];
+                        catmullRomWeights(rFx[x], cx);
+                        catmullRomWeights(rFy[x], cy);
+                        for (int k = 0; k < 4; ++k) {
+                            wx[k][x] = cx[k];
+                            wy[k][x] = cy[k];
+                        }
+                    }
+                }
+                if (!vectors)
+                    std::fill(rFast + a, rFast + b, 0);
+                else if (cr)
+                    tapRow<true>(S, R, y, a, b, rFast, rDx, rDy);
+                else
+                    tapRow<false>(S, R, y, a, b, rFast, rDx, rDy);
+            }
+            // Everything else, and the kernel's 3x3-fallback pixels, per pixel.
 #pragma GCC ivdep
             for (int x = 0; x < w; ++x) redo[x] = (rFast[x] == 0) | (rSumW[x] < 1e-4f);
             for (int x = nextFlag(redo, 0, w); x < w; x = nextFlag(redo, x + 1, w)) {

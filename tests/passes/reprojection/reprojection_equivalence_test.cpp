@@ -165,6 +165,14 @@ TEST(ReprojectionEquivalence, SceneWithMotionVectors) {
     }
 }
 
+TEST(ReprojectionEquivalence, WideRowsInSeveralTiles) {
+    // The pass works through a row in tiles of 256 pixels, the last taking the remainder: 1100
+    // columns make four tiles with derivatives, runs and vectors crossing tile boundaries.
+    Frames f = reprojscene::makeFrames(1100, 9, 13);
+    sprinkleExtremes(f, 0.01f, 13);
+    expectEquivalentAll(f, {}, "wide rows");
+}
+
 TEST(ReprojectionEquivalence, StaticAndFastScenes) {
     expectEquivalentAll(reprojscene::makeFrames(64, 40, 3, 0.f), {}, "static");
     expectEquivalentAll(reprojscene::makeFrames(64, 40, 4, 6.f), {}, "fast");
