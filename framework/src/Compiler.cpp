@@ -496,7 +496,33 @@ private:
         // Lifetime-based aliasing: walk the execution order, give each transient output the
         // lowest free planes before its pass runs, and free a resource's planes once its last
         // reader has run. Outputs are taken before inputs are freed, so a pass never writes
-        // into memory it reads. History resources persist across frames and are never aliased.
+        // into memory it reads, except in place: an output declared inPlaceOf an input takes
+        // over that input's planes when this pass is the input's last reader (the pass is
+        // pointwise on the pair). History resources persist across frames and are never aliased.
+        std::vector<bool> handedOver(g_->resources.size(), false);
+        auto inPlaceSource = [&](int k, int r) -> int {
+            const int v = g_->order[size_t(k)];
+            const auto& ports = descOf(v).ports;
+            const auto& pr = node(v).portResource;
+            int out = -1;
+            for (size_t p = 0; p < ports.size(); ++p)
+                if (ports[p].kind == PortKind::Output && pr[p] == r) out = int(p);
+            if (!options_.inPlace || out < 0 || ports[size_t(out)].inPlaceOf.empty()) return -1;
+            int in = -1, readers = 0;
+            for (size_t p = 0; p < ports.size(); ++p)
+                if (ports[p].kind == PortKind::Input &&
+                    ports[p].name == ports[size_t(out)].inPlaceOf)
+                    in = int(p);
+            if (in < 0 || pr[size_t(in)] < 0 || node(v).portHistory[size_t(in)]) return -1;
+            const int src = pr[size_t(in)];
+            for (size_t p = 0; p < ports.size(); ++p)  // read through this port only
+                if (ports[p].kind == PortKind::Input && pr[p] == src) ++readers;
+            const auto& s = g_->resources[size_t(src)];
+            if (readers != 1 || s.history || s.marked || s.lastUse != k ||
+                handedOver[size_t(src)] || s.format != g_->resources[size_t(r)].format)
+                return -1;
+            return src;
+        };
         std::set<int> freePlanes;
         int nextPlane = 0;
         for (int k = 0; k < end; ++k) {
@@ -505,6 +531,12 @@ private:
                 if (res.history || res.firstUse != k) continue;
                 int need = channelCount(res.format);
                 g_->unaliasedPlanes += need;
+                if (const int src = inPlaceSource(k, int(r)); src >= 0) {
+                    res.planes = g_->resources[size_t(src)].planes;
+                    res.inPlaceOf = src;
+                    handedOver[size_t(src)] = true;
+                    continue;
+                }
                 for (int c = 0; c < need; ++c) {
                     if (!freePlanes.empty()) {
                         res.planes.push_back(*freePlanes.begin());
@@ -514,9 +546,11 @@ private:
                     }
                 }
             }
-            for (auto& res : g_->resources)
-                if (!res.history && res.lastUse == k)
+            for (size_t r = 0; r < g_->resources.size(); ++r) {
+                const auto& res = g_->resources[r];
+                if (!res.history && res.lastUse == k && !handedOver[r])
                     for (int pl : res.planes) freePlanes.insert(pl);
+            }
         }
         g_->transientPlanes = nextPlane;
     }
@@ -645,7 +679,7 @@ std::string CompiledGraph::toDot() const {
                 else if (!r.planes.empty()) {
                     label += "\\n[mem planes";
                     for (int pl : r.planes) label += " " + std::to_string(pl);
-                    label += "]";
+                    label += r.inPlaceOf >= 0 ? ", written in place]" : "]";
                 }
             }
         }

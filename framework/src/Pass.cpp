@@ -8,19 +8,32 @@
 namespace kestrel {
 
 PassDesc& PassDesc::input(std::string name, Format f, std::string desc) {
-    ports.push_back({std::move(name), PortKind::Input, f, false, false, std::move(desc)});
+    ports.push_back({std::move(name), PortKind::Input, f, false, false, std::move(desc), {}});
     return *this;
 }
 PassDesc& PassDesc::optionalInput(std::string name, Format f, std::string desc) {
-    ports.push_back({std::move(name), PortKind::Input, f, true, false, std::move(desc)});
+    ports.push_back({std::move(name), PortKind::Input, f, true, false, std::move(desc), {}});
     return *this;
 }
 PassDesc& PassDesc::historyInput(std::string name, Format f, std::string desc) {
-    ports.push_back({std::move(name), PortKind::Input, f, true, true, std::move(desc)});
+    ports.push_back({std::move(name), PortKind::Input, f, true, true, std::move(desc), {}});
     return *this;
 }
 PassDesc& PassDesc::output(std::string name, Format f, std::string desc) {
-    ports.push_back({std::move(name), PortKind::Output, f, false, false, std::move(desc)});
+    ports.push_back({std::move(name), PortKind::Output, f, false, false, std::move(desc), {}});
+    return *this;
+}
+PassDesc& PassDesc::inPlaceOf(std::string input) {
+    if (ports.empty() || ports.back().kind != PortKind::Output)
+        throw Error("pass type '" + type + "': inPlaceOf('" + input + "') must follow an output");
+    const PortDesc* in = nullptr;
+    for (const auto& p : ports)
+        if (p.kind == PortKind::Input && p.name == input) in = &p;
+    if (!in || in->history || in->format != ports.back().format)
+        throw Error("pass type '" + type + "': output '" + ports.back().name +
+                    "' cannot be in place of '" + input +
+                    "': that must be a this-frame input declared before it, of the same format");
+    ports.back().inPlaceOf = std::move(input);
     return *this;
 }
 
@@ -95,7 +108,9 @@ nlohmann::json paramValueToJson(const ParamValue& v) {
 }
 
 namespace {
-std::string jsonTypeName(const nlohmann::json& j) { return std::string(j.type_name()); }
+std::string jsonTypeName(const nlohmann::json& j) {
+    return std::string(j.type_name());
+}
 
 // Range bounds as a user writes them: "[0, 1]", not "[0.0, 1.0]".
 std::string fmtNum(double d) {
@@ -111,8 +126,8 @@ ParamValues checkParams(const PassDesc& desc, const nlohmann::json& params, cons
     for (const auto& p : desc.params) values[p.name] = p.defaultValue;
     if (params.is_null()) return ParamValues(std::move(values));
     if (!params.is_object()) {
-        diags.push_back({path + ".params", "expected an object of parameters, got " +
-                                                jsonTypeName(params)});
+        diags.push_back(
+            {path + ".params", "expected an object of parameters, got " + jsonTypeName(params)});
         return ParamValues(std::move(values));
     }
     std::vector<std::string> names;

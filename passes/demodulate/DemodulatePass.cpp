@@ -13,6 +13,7 @@ PassDesc DemodulatePass::describe() {
         .optionalInput("albedo", Format::Float3, "surface albedo to divide out")
         .optionalInput("emission", Format::Float3, "emitted radiance to subtract first")
         .output("illumination", Format::Float3, "demodulated illumination (finite)")
+        .inPlaceOf("color")
         .paramFloat("albedoFloor", 1e-3, 0.0, 1.0,
                     "lower bound of the albedo divisor (dark albedo would amplify noise)");
     return d;
@@ -32,8 +33,11 @@ namespace {
 // One channel of one row: (colour - emission) / albedo, sanitised. A, E: albedo, emission fed
 // (compile-time, so the loop is branch-free and vectorises).
 template <bool A, bool E>
-void demodulateRow(int w, const float* __restrict src, const float* __restrict a,
-                   const float* __restrict e, float* __restrict dst, float floor) {
+void demodulateRow(int w, const float* src, const float* __restrict a, const float* __restrict e,
+                   float* dst, float floor) {
+    // dst may be src (in place): each pixel is read before it is written, so no iteration
+    // depends on another.
+#pragma GCC ivdep
     for (int x = 0; x < w; ++x) {
         float v = px::sanitize(src[x]);
         if constexpr (E) v -= px::sanitize(e[x]);

@@ -17,7 +17,8 @@ constexpr int kChunk = 64;      // centre pixels processed together (tiles stay 
 constexpr int kMaxRadius = 64;  // the radius parameter's upper bound
 
 // NaN and +-Inf carry no information: 0, as px::sanitize does (clamping Inf to +-limit made one
-// Inf sample a 1e18 output that the temporal history then kept; stability suite, NanAndInfRadiance).
+// Inf sample a 1e18 output that the temporal history then kept; stability suite,
+// NanAndInfRadiance).
 float sanitise(float v, float limit) {
     return std::isfinite(v) ? std::clamp(v, -limit, limit) : 0.f;
 }

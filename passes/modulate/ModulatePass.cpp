@@ -14,6 +14,7 @@ PassDesc ModulatePass::describe() {
         .optionalInput("emission", Format::Float3, "emitted radiance to add back")
         .optionalInput("base", Format::Float3, "radiance added on top (sums split components)")
         .output("color", Format::Float3, "radiance")
+        .inPlaceOf("illumination")
         .paramFloat("albedoFloor", 1e-3, 0.0, 1.0,
                     "lower bound of the albedo factor (must match Demodulate's)");
     return d;
@@ -35,9 +36,11 @@ namespace {
 // -ffp-contract=off). A, E, B: albedo, emission, base fed (compile-time, so the loop is
 // branch-free and vectorises).
 template <bool A, bool E, bool B>
-void modulateRow(int w, const float* __restrict src, const float* __restrict a,
-                 const float* __restrict e, const float* __restrict b, float* __restrict dst,
-                 float floor) {
+void modulateRow(int w, const float* src, const float* __restrict a, const float* __restrict e,
+                 const float* __restrict b, float* dst, float floor) {
+    // dst may be src (in place): each pixel is read before it is written, so no iteration
+    // depends on another.
+#pragma GCC ivdep
     for (int x = 0; x < w; ++x) {
         float v = px::sanitize(src[x]);
         if constexpr (A) v *= px::demodulationAlbedo(a[x], floor);

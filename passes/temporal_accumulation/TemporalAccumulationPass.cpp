@@ -21,10 +21,12 @@ PassDesc TemporalAccumulationPass::describe() {
         .optionalInput("prevHistoryLength", Format::Float,
                        "reprojected history length; 0 (or unbound) means no history")
         .output("color", Format::Float3, "accumulated illumination")
+        .inPlaceOf("prevColor")
         .output("moments", Format::Float2, "accumulated luminance moments (l, l^2)")
         .output("historyLength", Format::Float,
                 "min(maxHistoryLength, prev + 1), 1 without history")
         .output("variance", Format::Float, "temporal luminance variance max(0, m2 - m1^2)")
+        .inPlaceOf("prevHistoryLength")
         .paramFloat("alpha", 0.2, 0.0, 1.0, "minimum blend weight of the current colour")
         .paramFloat("momentsAlpha", 0.2, 0.0, 1.0, "minimum blend weight of the current moments")
         .paramFloat("maxHistoryLength", 32.0, 1.0, 1e6, "cap of the history length")

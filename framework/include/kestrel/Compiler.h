@@ -16,6 +16,9 @@ struct CompileOptions {
     int64_t firstFrame = 0;  ///< handed to sources so they can probe the scene
     /// Only validate: do not call resolve() (no files opened), skip scene adaptation.
     bool validateOnly = false;
+    /// Let outputs declared PassDesc::inPlaceOf take over their input's memory where allowed;
+    /// false gives every output memory of its own (to check a pass's in-place declaration).
+    bool inPlace = true;
 };
 
 /// Why a pass is not executed.
@@ -44,6 +47,9 @@ struct ResourceInfo {
     bool marked = false;            ///< a graph output, kept to the end of the frame
     int firstUse = 0, lastUse = 0;  ///< execution-order indices
     std::vector<int> planes;        ///< physical plane slots (transient) it occupies
+    /// The resource whose planes this one took over (written in place by its producer, see
+    /// PassDesc::inPlaceOf), else -1.
+    int inPlaceOf = -1;
 };
 
 class CompiledGraph;

@@ -30,6 +30,8 @@ struct PortDesc {
     bool optional = false;  ///< input may stay unbound; the pass adapts
     bool history = false;   ///< input must be fed by a history edge (previous frame's value)
     std::string description;
+    /// Outputs: the input whose memory this output may be given (see PassDesc::inPlaceOf).
+    std::string inPlaceOf;
 };
 
 /// What a pass type declares: its ports and parameters. Built with the chainable helpers.
@@ -48,6 +50,13 @@ struct PassDesc {
     /// Previous-frame value through a history edge; always optional (invalid on first frame).
     PassDesc& historyInput(std::string name, Format f, std::string desc);
     PassDesc& output(std::string name, Format f, std::string desc);
+    /// The last declared output may be written into the memory of `input` (same format) when
+    /// this pass is that input's last reader this frame: the compiler then gives both one set of
+    /// planes (saving the output's memory). The pass promises to be pointwise on that pair: it
+    /// reads each pixel of the input before writing the same pixel of the output, and no other
+    /// pixel of the input (no neighbourhood). Kernels must not declare the two pointers
+    /// __restrict.
+    PassDesc& inPlaceOf(std::string input);
 
     PassDesc& paramFloat(std::string name, double def, double min, double max, std::string desc);
     PassDesc& paramInt(std::string name, int64_t def, int64_t min, int64_t max, std::string desc);

@@ -94,6 +94,30 @@ public:
     }
 };
 
+/// out = 2 in + 1 (+ other when bound), pointwise, declared in place of `in`: the compiler may
+/// give `out` the memory of `in`. Records whether it last ran in place (both views on the same
+/// planes).
+class ScaleInPlacePass : public Pass {
+public:
+    static PassDesc describe() {
+        return PassDesc("ScaleInPlace", "2 in + 1 (+ other), pointwise")
+            .input("in", Format::Float, "input")
+            .optionalInput("other", Format::Float, "added when bound")
+            .output("out", Format::Float, "2 in + 1 (+ other)")
+            .inPlaceOf("in");
+    }
+    explicit ScaleInPlacePass(const ParamValues&) {}
+    void execute(FrameContext&, PassIO& io) override {
+        const ImageView& in = io.input("in");
+        const float* other = io.hasInput("other") ? io.input("other").channel(0) : nullptr;
+        const ImageView& o = io.output("out");
+        lastRunInPlace = in.channel(0) == o.channel(0);
+        for (size_t i = 0; i < o.pixels(); ++i)
+            o.channel(0)[i] = 2.f * in.channel(0)[i] + 1.f + (other ? other[i] : 0.f);
+    }
+    static inline bool lastRunInPlace = false;
+};
+
 /// out(x) = (in(x) + in(x-1)) / 2 along each row. Reading the left neighbour after writing the
 /// current pixel means in-place (aliased) execution gives different values; aliasing of its own
 /// input and output is also reported as an error outright.
@@ -310,6 +334,7 @@ inline Registry testRegistry() {
     r.add<RampPass>();
     r.add<FrameNumberPass>();
     r.add<AddOnePass>();
+    r.add<ScaleInPlacePass>();
     r.add<NeighbourAveragePass>();
     r.add<SumPass>();
     r.add<CounterPass>();

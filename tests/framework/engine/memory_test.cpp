@@ -1,5 +1,7 @@
 // Lifetime-based aliasing: transient memory is reused once its last reader has run, never
-// under a pass's own input, never under a resource still to be read.
+// under a pass's own input, never under a resource still to be read; an output declared in
+// place of an input takes over that input's memory only when its pass is the input's last
+// reader.
 #include <gtest/gtest.h>
 
 #include <string>
@@ -112,6 +114,108 @@ TEST(Memory, MultiChannelResourcesGetDistinctPlanesPerChannel) {
     ex.runFrame(1);
     ImageView v = ex.output("c.color");
     for (int ch = 0; ch < 3; ++ch) EXPECT_EQ(v.at(ch, 1, 1), float(ch));
+}
+
+/// A Ramp source, then `count` ScaleInPlace passes in a chain; `alsoRead`: the ramp is also
+/// read by a Sum at the end (so the first pass is not its last reader).
+std::string scaleChain(int count, bool alsoRead) {
+    std::string passes = R"({"name": "ramp", "type": "Ramp"})", edges;
+    std::string prev = "ramp";
+    for (int i = 1; i <= count; ++i) {
+        const std::string n = "s" + std::to_string(i);
+        passes += R"(, {"name": ")" + n + R"(", "type": "ScaleInPlace"})";
+        edges += std::string(i > 1 ? ", " : "") + R"({"from": ")" + prev + R"(.out", "to": ")" + n +
+                 R"(.in"})";
+        prev = n;
+    }
+    std::string out = prev + ".out";
+    if (alsoRead) {
+        passes += R"(, {"name": "sum", "type": "Sum"})";
+        edges += R"(, {"from": ")" + prev +
+                 R"(.out", "to": "sum.a"}, {"from": "ramp.out", "to": "sum.b"})";
+        out = "sum.out";
+    }
+    return R"({"kestrel": 1, "passes": [)" + passes + R"(], "edges": [)" + edges +
+           R"(], "outputs": [")" + out + R"("]})";
+}
+
+float scaled(float v, int times) {
+    for (int k = 0; k < times; ++k) v = 2.f * v + 1.f;
+    return v;
+}
+
+TEST(Memory, InPlaceOutputsShareTheirInputsPlanes) {
+    Registry r = testRegistry();
+    auto g = compileText(scaleChain(10, false), r);
+    EXPECT_EQ(g->unaliasedPlaneCount(), 11);
+    EXPECT_EQ(g->transientPlaneCount(), 1);  // every pass writes over its input
+    int inPlace = 0;
+    for (const auto& res : g->resources()) inPlace += res.inPlaceOf >= 0;
+    EXPECT_EQ(inPlace, 10);
+    Parallel par(2);
+    const Extent ext{7, 3};
+    Executor ex(*g, par, {}, ext);
+    ex.runFrame(1);
+    EXPECT_TRUE(ScaleInPlacePass::lastRunInPlace);
+    ImageView out = ex.output("s10.out");
+    for (int y = 0; y < ext.height; ++y)
+        for (int x = 0; x < ext.width; ++x)
+            ASSERT_EQ(out.at(0, x, y), scaled(float(x + 10 * y), 10)) << x << "," << y;
+}
+
+TEST(Memory, NoInPlaceWhenTheInputIsReadLater) {
+    Registry r = testRegistry();
+    // The ramp is read again by `sum` after s1: s1 must not write over it.
+    auto g = compileText(scaleChain(3, true), r);
+    for (const auto& res : g->resources())
+        if (res.producer == "s1.out") {
+            EXPECT_EQ(res.inPlaceOf, -1);
+        }
+    Parallel par(1);
+    Executor ex(*g, par, {}, Extent{5, 2});
+    ex.runFrame(1);
+    ImageView out = ex.output("sum.out");
+    for (int y = 0; y < 2; ++y)
+        for (int x = 0; x < 5; ++x) {
+            const float ramp = float(x + 10 * y);
+            ASSERT_EQ(out.at(0, x, y), scaled(ramp, 3) + ramp) << x << "," << y;
+        }
+}
+
+TEST(Memory, NoInPlaceWhenTheInputFeedsTwoPortsOfThePass) {
+    Registry r = testRegistry();
+    auto g = compileText(R"({"kestrel": 1, "passes": [{"name": "ramp", "type": "Ramp"},
+        {"name": "s", "type": "ScaleInPlace"}],
+        "edges": [{"from": "ramp.out", "to": "s.in"}, {"from": "ramp.out", "to": "s.other"}],
+        "outputs": ["s.out"]})",
+                         r);
+    EXPECT_EQ(g->transientPlaneCount(), 2);
+    Parallel par(1);
+    Executor ex(*g, par, {}, Extent{4, 2});
+    ex.runFrame(1);
+    EXPECT_FALSE(ScaleInPlacePass::lastRunInPlace);
+    for (int x = 0; x < 4; ++x)
+        EXPECT_EQ(ex.output("s.out").at(0, x, 1), 3.f * float(x + 10) + 1.f);
+}
+
+TEST(Memory, InPlaceDeclarationsAreChecked) {
+    // Only after an output, only of a this-frame input of the same format.
+    EXPECT_THROW(PassDesc("T", "").input("a", Format::Float, "").inPlaceOf("a"), Error);
+    EXPECT_THROW(PassDesc("T", "")
+                     .input("a", Format::Float3, "")
+                     .output("o", Format::Float, "")
+                     .inPlaceOf("a"),
+                 Error);
+    EXPECT_THROW(PassDesc("T", "")
+                     .historyInput("a", Format::Float, "")
+                     .output("o", Format::Float, "")
+                     .inPlaceOf("a"),
+                 Error);
+    EXPECT_THROW(PassDesc("T", "").output("o", Format::Float, "").inPlaceOf("missing"), Error);
+    EXPECT_NO_THROW(PassDesc("T", "")
+                        .input("a", Format::Float, "")
+                        .output("o", Format::Float, "")
+                        .inPlaceOf("a"));
 }
 
 }  // namespace
