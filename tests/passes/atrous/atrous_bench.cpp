@@ -45,7 +45,7 @@ void BM_ATrous(benchmark::State& state) {
         benchmark::Counter(px * 25e-9 * double(state.iterations()), benchmark::Counter::kIsRate);
 }
 BENCHMARK(BM_ATrous)
-    ->ArgsProduct({{1, 16}, {1, 2}})
+    ->ArgsProduct({{1, 4, 16}, {1, 2}})
     ->ArgNames({"step", "threads"})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()

@@ -305,9 +305,10 @@ TEST(ATrous, VectorisedMatchesScalarReferenceForOtherNormalExponents) {
 }
 
 TEST(ATrous, BandedFilteringMatchesReferenceAcrossBandSeams) {
-    // 150 rows at step 16 are filtered in three bands whose halos overlap.
+    // 150 rows are filtered in three bands of 64 whose halos overlap.
     expectATrousEquivalent(157, 150, 16, 77, false, 2);
     expectATrousEquivalent(157, 150, 1, 78, false, 2);
+    expectATrousEquivalent(157, 150, 4, 79, false, 2);
 }
 
 TEST(ATrous, ScratchScalesWithTheBandNotTheFrame) {
