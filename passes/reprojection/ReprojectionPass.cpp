@@ -222,7 +222,7 @@ PixelOut reprojectPixel(const Sources& S, const PixelRef& P) {
         float dn2 = 0;
         for (int c = 0; c < 3; ++c) {
             const float dn = nn[c] - px::sanitizeNormal(S.pn[c][t]);
-            dn2 += dn * dn;
+            dn2 = std::fma(dn, dn, dn2);
         }
         return (id == P.refId) & !(dz > S.dThr) & (dn2 * (P.invN * P.invN) <= S.nThr2);
     };
@@ -230,14 +230,13 @@ PixelOut reprojectPixel(const Sources& S, const PixelRef& P) {
     auto addTap = [&](int tx, int ty, float wt) {
         const size_t t = size_t(ty) * size_t(w) + size_t(tx);
         if (S.pc[0])
-            for (int c = 0; c < 3; ++c) acc[c] += wt * px::sanitize(S.pc[c][t]);
+            for (int c = 0; c < 3; ++c) acc[c] = std::fma(wt, px::sanitize(S.pc[c][t]), acc[c]);
         if (S.pm[0]) {
-            accM[0] += wt * px::sanitize(S.pm[0][t]);
-            accM[1] += wt * px::sanitizePositive(S.pm[1][t], 1e32f);
+            accM[0] = std::fma(wt, px::sanitize(S.pm[0][t]), accM[0]);
+            accM[1] = std::fma(wt, px::sanitizePositive(S.pm[1][t], 1e32f), accM[1]);
         }
-        // The history length's product is rounded before the sum (not fused into an FMA),
-        // as the compiler always evaluated `accH += wt * (hist ? h : 1)`; std::fma(a, b, 0)
-        // is that rounded product and cannot be contracted further.
+        // The history length's product is rounded before the sum: std::fma(a, b, 0) is that
+        // rounded product (the vector kernel computes the same).
         accH += std::fma(wt, S.ph ? px::sanitizePositive(S.ph[t], 1e6f) : 1.f, 0.f);
         sumW += wt;
     };
@@ -291,7 +290,7 @@ PixelOut reprojectPixel(const Sources& S, const PixelRef& P) {
                     for (int k = 0; k < 4; ++k) {
                         const float v = px::sanitize(
                             S.pc[c][size_t(y0 - 1 + j) * size_t(w) + size_t(x0 - 1 + k)]);
-                        s += wx[k] * wy[j] * v;
+                        s = std::fma(wx[k] * wy[j], v, s);
                         if (j >= 1 && j <= 2 && k >= 1 && k <= 2) {
                             lo = std::min(lo, v);
                             hi = std::max(hi, v);
@@ -309,8 +308,9 @@ PixelOut reprojectPixel(const Sources& S, const PixelRef& P) {
 // case: motion varies slowly) the taps are contiguous loads; elsewhere they are gathered per
 // lane. Lanes whose taps may leave the image, invalid positions and the 3x3 fallback (weight sum
 // below 1e-4) are recomputed afterwards by reprojectPixel. Every operation is the reference's,
-// in its order and with its roundings (fused where GCC contracts the scalar code), with masked
-// selects where the scalar code skips a tap, so results are bit-identical to reprojectPixel
+// in its order and with its roundings (this file is built without contraction: a fused
+// multiply-add is std::fma there and MulAdd here), with masked selects where the scalar code
+// skips a tap, so results are bit-identical to reprojectPixel
 // (tests/passes/reprojection, 0 ulp) and independent of how rows are split among threads.
 namespace hn = hwy::HWY_NAMESPACE;
 using simd::DF;
@@ -319,7 +319,7 @@ using simd::MF;
 using simd::VF;
 using simd::VI;
 
-/// One row's per-pixel terms (scratch rows, padded to whole vectors) and output rows.
+/// One row's per-pixel terms (scratch rows) and output rows.
 struct RowTerms {
     const float *zRef, *n0, *n1, *n2, *invZ, *invN;
     const float *bw[4], *wx[4], *wy[4];  ///< bilinear and (Catmull-Rom) separable weights
@@ -378,9 +378,8 @@ HWY_INLINE void tapVector(const Sources& S, const RowTerms& R, int x, ptrdiff_t 
     sw = hn::IfThenElse(a3, hn::Add(sw, w3), sw);
     hn::StoreU(sw, d, R.sumW + x);
     const VF inv = hn::Div(hn::Set(d, 1.f), sw);  // sw < 1e-4 (or 0): recomputed by reprojectPixel
-    // The reference's `acc += wt * v` is contracted into a fused multiply-add (GCC's default
-    // for C++), except the history length's, whose product is rounded before the sum: written
-    // out here, MulAdd(wt, v, 0) being that rounded product (no contraction can fuse it further).
+    // acc = fma(wt, v, acc) as in reprojectPixel, except the history length's, whose product is
+    // rounded before the sum (MulAdd(wt, v, 0) is that rounded product).
     auto bilinear = [&](const float* p, auto sanitizeTap, auto roundedProduct) HWY_ATTR {
         auto add = [&](VF acc, VF wt, VF v) HWY_ATTR {
             if constexpr (decltype(roundedProduct)::value)
@@ -570,9 +569,9 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
         // extent, and the row loops would not vectorise.
         const int w = S.w, h = S.h;
         // Row scratch: float rows (derivatives, positions, fractions, weights, output sinks,
-        // this frame's sanitised geometry) and int rows (tap offsets, flags, ids). Rows are
-        // padded past the width.
-        constexpr int kF = 43, kI = 6, kPad = 32, kTile = 256;
+        // this frame's sanitised geometry) and int rows (tap offsets, flags, ids), a cache
+        // line of padding apart.
+        constexpr int kF = 41, kI = 6, kPad = 16, kTile = 256;
         const size_t ws = size_t(w) + kPad;
         Scratch& sc = tScratch;
         sc.reserve(ws * kF, ws * kI, size_t(w));
@@ -591,7 +590,7 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
                 *zeroIds = irow(5);
         // This frame's sanitised depth and normal, rows y-1..y+1 in a ring of three slots
         // (each element sanitised once, not once per derivative that reads it).
-        auto geomSlot = [&](int row, int plane) { return frow(31 + (row % 3) * 4 + plane); };
+        auto geomSlot = [&](int row, int plane) { return frow(29 + (row % 3) * 4 + plane); };
         auto sanitizeGeom = [&](int row) {
             const float* z = depth.row(0, row);
             float* zo = geomSlot(row, 0);

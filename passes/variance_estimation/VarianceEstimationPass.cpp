@@ -275,7 +275,8 @@ void VarianceEstimationPass::execute(FrameContext& ctx, PassIO& io) {
     ctx.parallel->forRange(
         0, bands,
         [&](int i0, int i1) {
-            std::vector<uint8_t> need(static_cast<size_t>(blocks));
+            thread_local std::vector<uint8_t> need;  // per block: prepare and estimate
+            need.resize(static_cast<size_t>(blocks));
             for (int i = i0; i < i1; ++i) {
                 const int y0 = i * kBand, y1 = std::min(in.h, y0 + kBand);
                 std::fill(need.begin(), need.end(), uint8_t(0));

@@ -60,6 +60,7 @@ struct RunResult {
     std::vector<eval::FrameMetrics> metrics;  ///< per frame
     std::vector<std::string> executed;
     CompileReport report;
+    int transientPlanes = 0, inPlaceOutputs = 0;  ///< the memory plan
     double mean(size_t from = 0) const {
         double s = 0;
         for (size_t i = from; i < metrics.size(); ++i) s += metrics[i].relMse;
@@ -97,6 +98,8 @@ RunResult runGraph(const std::string& graphName, const std::string& input, const
     RunResult r;
     r.executed = compiled->executionOrder();
     r.report = compiled->report();
+    r.transientPlanes = compiled->transientPlaneCount();
+    for (const auto& res : compiled->resources()) r.inPlaceOutputs += res.inPlaceOf >= 0;
     Parallel parallel(2);
     Executor exec(*compiled, parallel);
     exec.beginRun(frames.front(), frames.back());
@@ -194,20 +197,22 @@ TEST(SvgfQuality, StaticCameraErrorKeepsFallingAsFramesAccumulate) {
     EXPECT_LT(e16, e4);
 }
 
-// svgf.json runs unchanged on a scene without emission, albedo and motion vectors: demodulation
-// and modulation are left out, reprojection uses positions and matrices, and the loader reads
-// none of the missing channels.
 // Demodulate, TemporalAccumulation and Modulate write outputs in place of inputs (the compiled
-// svgf.json needs 17 transient planes instead of 21 at 1080p): the output must be the same to
-// the bit as with every output in memory of its own.
+// svgf.json needs 17 transient planes instead of 21): the output must be the same to the bit as
+// with every output in memory of its own.
 TEST(SvgfInPlace, SameOutputWithAndWithoutInPlaceOutputs) {
     fs::path scene = makeScene("moving", baseScene());
     auto frames = range(1, 6);
     std::string in = (scene / "noisy/frame_####.exr").string(),
                 ref = (scene / "ref/frame_####.exr").string();
     std::vector<std::vector<float>> a, b;
-    runGraph("svgf.json", in, ref, frames, false, {}, true, &a);
-    runGraph("svgf.json", in, ref, frames, false, {}, false, &b);
+    const RunResult inPlace = runGraph("svgf.json", in, ref, frames, false, {}, true, &a);
+    const RunResult apart = runGraph("svgf.json", in, ref, frames, false, {}, false, &b);
+    // Demodulate's illumination, TemporalAccumulation's colour and variance, Modulate's colour.
+    EXPECT_EQ(inPlace.inPlaceOutputs, 4);
+    EXPECT_EQ(apart.inPlaceOutputs, 0);
+    EXPECT_EQ(inPlace.transientPlanes, 17);
+    EXPECT_EQ(apart.transientPlanes, 21);
     ASSERT_EQ(a.size(), frames.size());
     ASSERT_EQ(b.size(), frames.size());
     for (size_t f = 0; f < frames.size(); ++f)
@@ -215,6 +220,9 @@ TEST(SvgfInPlace, SameOutputWithAndWithoutInPlaceOutputs) {
             << "frame " << frames[f];
 }
 
+// svgf.json runs unchanged on a scene without emission, albedo and motion vectors: demodulation
+// and modulation are left out, reprojection uses positions and matrices, and the loader reads
+// none of the missing channels.
 TEST(SvgfAdapts, SceneWithoutAlbedoEmissionOrMotion) {
     auto opt = baseScene();
     opt.frames = 6;

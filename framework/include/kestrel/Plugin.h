@@ -12,7 +12,7 @@
 
 #include "kestrel/Registry.h"
 
-#define KESTREL_PLUGIN_ABI_VERSION 2u
+#define KESTREL_PLUGIN_ABI_VERSION 3u
 
 namespace kestrel {
 

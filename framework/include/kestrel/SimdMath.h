@@ -4,8 +4,9 @@
 // Each function evaluates the same formula as its scalar namesake in PixelMath.h. The vector
 // forms spell out their fused multiply-adds; in the scalar ones GCC decides (it contracts a * b + c
 // by default in C++, even with -std=c++20, unlike ISO C), so results may differ from the scalar
-// ones by a few ulp, never more. A kernel that must match a scalar reference bit for bit writes
-// MulAdd where the reference is contracted and Mul + Add where it is not (Reprojection does).
+// ones by a few ulp, never more. A kernel that must match a scalar reference bit for bit builds
+// both without contraction (-ffp-contract=off) and writes MulAdd where the scalar code writes
+// std::fma (Reprojection does).
 //
 // Header-only; a pass that includes it links hwy::hwy (the framework itself does not).
 

@@ -198,6 +198,39 @@ TEST(Memory, NoInPlaceWhenTheInputFeedsTwoPortsOfThePass) {
         EXPECT_EQ(ex.output("s.out").at(0, x, 1), 3.f * float(x + 10) + 1.f);
 }
 
+TEST(Memory, NoInPlaceOverAGraphOutputOrAHistoryResource) {
+    Registry r = testRegistry();
+    // ramp.out is kept to the end of the frame (a graph output): s must not write over it.
+    auto marked = compileText(R"({"kestrel": 1, "passes": [{"name": "ramp", "type": "Ramp"},
+        {"name": "s", "type": "ScaleInPlace"}],
+        "edges": [{"from": "ramp.out", "to": "s.in"}],
+        "outputs": ["s.out", "ramp.out"]})",
+                              r);
+    for (const auto& res : marked->resources()) EXPECT_EQ(res.inPlaceOf, -1) << res.producer;
+    Parallel par(1);
+    Executor ex(*marked, par, {}, Extent{3, 2});
+    ex.runFrame(1);
+    for (int x = 0; x < 3; ++x) {
+        EXPECT_EQ(ex.output("ramp.out").at(0, x, 1), float(x + 10));
+        EXPECT_EQ(ex.output("s.out").at(0, x, 1), 2.f * float(x + 10) + 1.f);
+    }
+    // ramp.out is read next frame through a history edge: it persists, so it is never aliased.
+    auto history = compileText(R"({"kestrel": 1, "passes": [{"name": "ramp", "type": "Ramp"},
+        {"name": "s", "type": "ScaleInPlace"}, {"name": "p", "type": "Previous"},
+        {"name": "sum", "type": "Sum"}],
+        "edges": [{"from": "ramp.out", "to": "s.in"},
+                  {"from": "ramp.out", "to": "p.prev", "history": true},
+                  {"from": "s.out", "to": "sum.a"}, {"from": "p.out", "to": "sum.b"}],
+        "outputs": ["sum.out"]})",
+                               r);
+    for (const auto& res : history->resources()) EXPECT_EQ(res.inPlaceOf, -1) << res.producer;
+    Executor hx(*history, par, {}, Extent{3, 2});
+    hx.runFrame(1);
+    hx.runFrame(2);
+    for (int x = 0; x < 3; ++x)  // 2 ramp + 1 and last frame's ramp, intact
+        EXPECT_EQ(hx.output("sum.out").at(0, x, 1), 3.f * float(x + 10) + 1.f);
+}
+
 TEST(Memory, InPlaceDeclarationsAreChecked) {
     // Only after an output, only of a this-frame input of the same format.
     EXPECT_THROW(PassDesc("T", "").input("a", Format::Float, "").inPlaceOf("a"), Error);

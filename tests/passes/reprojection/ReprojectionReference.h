@@ -3,7 +3,8 @@
 // formula (every tap read through ImageView::at() and sanitised where it is used, derivatives
 // recomputed per pixel, transforms looked up in a std::map), kept to check the optimised pass
 // against. Same formula, same parameters, same evaluation order of every floating-point
-// expression, so the two agree bit for bit.
+// expression and the same roundings (both built with -ffp-contract=off, each fused
+// multiply-add written as std::fma), so the two agree bit for bit at any optimisation level.
 #include <kestrel/FrameContext.h>
 #include <kestrel/Image.h>
 #include <kestrel/PixelMath.h>
@@ -142,7 +143,7 @@ inline Outputs reproject(const Inputs& in, const Params& p) {
                 float dn2 = 0;
                 for (int c = 0; c < 3; ++c) {
                     const float dn = n[c] - px::sanitizeNormal(pNormal.at(c, tx, ty));
-                    dn2 += dn * dn;
+                    dn2 = std::fma(dn, dn, dn2);
                 }
                 // |n - n_prev| * invN <= nThr, squared (no square root per tap).
                 return dn2 * (invN * invN) <= nThr * nThr;
@@ -151,10 +152,12 @@ inline Outputs reproject(const Inputs& in, const Params& p) {
             float acc[3] = {0, 0, 0}, accM[2] = {0, 0}, accH = 0, sumW = 0;
             auto addTap = [&](int tx, int ty, float wt) {
                 if (pColor)
-                    for (int c = 0; c < 3; ++c) acc[c] += wt * px::sanitize(pColor->at(c, tx, ty));
+                    for (int c = 0; c < 3; ++c)
+                        acc[c] = std::fma(wt, px::sanitize(pColor->at(c, tx, ty)), acc[c]);
                 if (pMoments) {
-                    accM[0] += wt * px::sanitize(pMoments->at(0, tx, ty));
-                    accM[1] += wt * px::sanitizePositive(pMoments->at(1, tx, ty), 1e32f);
+                    accM[0] = std::fma(wt, px::sanitize(pMoments->at(0, tx, ty)), accM[0]);
+                    accM[1] =
+                        std::fma(wt, px::sanitizePositive(pMoments->at(1, tx, ty), 1e32f), accM[1]);
                 }
                 accH += wt * (pHist ? px::sanitizePositive(pHist->at(0, tx, ty), 1e6f) : 1.f);
                 sumW += wt;
@@ -204,7 +207,7 @@ inline Outputs reproject(const Inputs& in, const Params& p) {
                         for (int j = 0; j < 4; ++j)
                             for (int k = 0; k < 4; ++k) {
                                 const float v = px::sanitize(pColor->at(c, x0 - 1 + k, y0 - 1 + j));
-                                s += wx[k] * wy[j] * v;
+                                s = std::fma(wx[k] * wy[j], v, s);
                                 if (j >= 1 && j <= 2 && k >= 1 && k <= 2) {
                                     lo = std::min(lo, v);
                                     hi = std::max(hi, v);
