@@ -400,16 +400,21 @@ HWY_INLINE void tapVector(const Sources& S, const RowTerms& R, int x, ptrdiff_t 
     // is kept.
     if (R.hasC) {
         VF col[3];
-        for (int c = 0; c < 3; ++c)
-            col[c] = S.pc[c] ? bilinear(S.pc[c], radiance, FusedSum{}) : zero;
+        // Catmull-Rom (TAA histories): 4x4 where all 16 taps are consistent, clamped to the
+        // inner 2x2 taps' range so negative lobes cannot ring. The outer 12 tests only where the
+        // inner four passed; the bilinear colour only where some lane is not Catmull-Rom.
+        MF all16 = hn::FirstN(d, 0);
         if constexpr (CR) {
-            // Catmull-Rom 4x4 where all 16 taps are consistent, clamped to the inner 2x2 taps'
-            // range so negative lobes cannot ring. The outer 12 tests only where the inner
-            // four passed.
-            MF all16 = hn::And(hn::And(k00, k10), hn::And(k01, k11));
+            all16 = hn::And(hn::And(k00, k10), hn::And(k01, k11));
             for (int j = -1; j <= 2 && !hn::AllFalse(d, all16); ++j)
                 for (int k = -1; k <= 2; ++k)
                     if (j < 0 || j > 1 || k < 0 || k > 1) all16 = hn::And(all16, consistent(k, j));
+        }
+        const bool allCR = CR && hn::AllTrue(d, all16);
+        if (!allCR)
+            for (int c = 0; c < 3; ++c)
+                col[c] = S.pc[c] ? bilinear(S.pc[c], radiance, FusedSum{}) : zero;
+        if constexpr (CR) {
             if (!hn::AllFalse(d, all16)) {
                 VF wx[4], wy[4];
                 for (int k = 0; k < 4; ++k) {
@@ -429,7 +434,8 @@ HWY_INLINE void tapVector(const Sources& S, const RowTerms& R, int x, ptrdiff_t 
                         }
                     // px::clamp(s, lo, hi) = std::min(std::max(s, lo), hi)
                     const VF mx = hn::IfThenElse(hn::Lt(s, lo), lo, s);
-                    col[c] = hn::IfThenElse(all16, hn::IfThenElse(hn::Lt(hi, mx), hi, mx), col[c]);
+                    const VF cr = hn::IfThenElse(hn::Lt(hi, mx), hi, mx);
+                    col[c] = allCR ? cr : hn::IfThenElse(all16, cr, col[c]);
                 }
             }
         }
