@@ -367,7 +367,7 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
     // followed by a zeroed margin of the reach plus one vector (which is also the next row's
     // left margin; the first row has one before it), so that the kernel's vectors may read past
     // a row's ends (filterBlocks' edge blocks mask those taps).
-    // Bands of 64 rows (twice the reach from step 16 on): the halo is then an eighth of the
+    // Bands of 64 rows (twice the reach from step 16 on): the halo is then a quarter of the
     // band at step 4 (it was half with 32-row bands: 57-62 against 66-70 ms, 1 thread), and the
     // largest scratch, step 16's 64 + 2 x 32 rows, stays the same.
     const int reach = 2 * s_.step;
