@@ -23,8 +23,9 @@ Box toBox(const Imath::Box2i& b) {
 
 void checkWindow(const char* what, const Box& b, int64_t maxPixels) {
     if (b.width() <= 0 || b.height() <= 0) throw Error(std::string("empty or inverted ") + what);
-    // Both factors fit in 33 bits, so the product cannot overflow int64.
-    if (b.width() * b.height() > maxPixels)
+    // Each factor fits in 33 bits but their product may not fit in int64 (found by exr_fuzzer):
+    // compare by division (height > 0 here).
+    if (b.width() > maxPixels / b.height())
         throw Error(std::string(what) + " " + std::to_string(b.width()) + "x" +
                     std::to_string(b.height()) + " exceeds maxPixels " + std::to_string(maxPixels) +
                     " (refused before allocating)");
