@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 
 #include "../SvgfTestImages.h"
 #include "ATrousPass.h"
@@ -329,6 +330,54 @@ TEST(ATrous, ScratchScalesWithTheBandNotTheFrame) {
 
 TEST(ATrous, VectorisedMatchesScalarReferenceOnExtremeInputs) {
     for (int step : {1, 4, 16}) expectATrousEquivalent(157, 41, step, 40 + step, true, 2);
+}
+
+// The pass reads clean inputs in place and filters a band from sanitised copies when any of its
+// rows (halo included) holds a value the sanitisers change. Scene `dirty` differs from `clean`
+// only by such values, each sanitising to the clean scene's value (NaN colour -> 0, NaN depth ->
+// background, normal component 3 -> 0, negative variance -> 0): the outputs must be bit-identical,
+// with some bands taken in place and others copied (dirty rows at the top, in the middle band,
+// at the bottom; in the first and last columns).
+TEST(ATrous, ReadingInPlaceAndFromSanitisedCopiesAgree) {
+    const int w = 157, h = 150;
+    RandomGBuffer g = randomGBuffer(w, h, 21);
+    Image var = scalar(w, h, [](int x, int y) { return 0.01f + hash01(x, y, 24); });
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    const int spots[][2] = {{0, 0}, {w - 1, 100}, {5, h - 1}};
+    // One kind of dirty value per scene, so that each of the kernel's checks is needed.
+    for (int kind = 0; kind < 4; ++kind) {
+        Scene clean{clone(g.color), clone(var), clone(g.depth), clone(g.normal), clone(g.ids)};
+        Scene dirty = clean.copy();
+        for (const auto& p : spots) {
+            const int x = p[0], y = p[1];
+            switch (kind) {
+                case 0:
+                    clean.color.at(1, x, y) = 0.f;
+                    dirty.color.at(1, x, y) = nan;
+                    break;
+                case 1:
+                    clean.depth.at(0, x, y) = kBackgroundDepth;
+                    dirty.depth.at(0, x, y) = nan;
+                    break;
+                case 2:
+                    clean.normal.at(2, x, y) = 0.f;
+                    dirty.normal.at(2, x, y) = 3.f;
+                    break;
+                default:
+                    clean.var.at(0, x, y) = 0.f;
+                    dirty.var.at(0, x, y) = -1.f;
+            }
+        }
+        for (int step : {1, 4, 16}) {
+            auto a = runATrous(clean, {{"step", int64_t(step)}}, 1);
+            auto b = runATrous(dirty, {{"step", int64_t(step)}}, 2);
+            EXPECT_TRUE(identical(a.out("color"), b.out("color")))
+                << "kind " << kind << ", step " << step;
+            EXPECT_TRUE(identical(a.out("variance"), b.out("variance")))
+                << "kind " << kind << ", step " << step;
+            EXPECT_TRUE(allFinite(b.out("color")) && allFinite(b.out("variance")));
+        }
+    }
 }
 
 TEST(ATrous, ExactParameterRunsThePlainPath) {
