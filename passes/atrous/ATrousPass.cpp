@@ -65,7 +65,9 @@ constexpr float kZeroWeight = -1e4f;  // log2 weight penalty: fastExp2 returns e
 constexpr float kLn2 = 0.693147180559945f;
 constexpr float kMaxVariance = 1e32f;  // sanitizePositive's limit for the variance input
 
-enum Plane { R, G, B, L, Z, GX, GY, NX, NY, NZ, VAR, INVL, ID, kPlaneCount };
+// The planes a band computes first: reading its inputs in place, it needs scratch only for them.
+enum Plane { L, GX, GY, INVL, R, G, B, Z, NX, NY, NZ, VAR, ID, kPlaneCount };
+constexpr int kComputedPlanes = INVL + 1;
 
 template <class Fn>
 void copySanitized(const float* __restrict src, float* __restrict dst, int n, Fn fn) {
@@ -449,9 +451,10 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
         ctx.parallel->forRange(
             0, int(list.size()),
             [&](int j0, int j1) {
-                auto lease = ScratchPool::acquire(kPlaneCount, bandPixels);
-                float* scratch[kPlaneCount];
-                for (int k = 0; k < kPlaneCount; ++k) scratch[k] = lease[size_t(k)] + margin;
+                const int planes = inPlace ? kComputedPlanes : kPlaneCount;
+                auto lease = ScratchPool::acquire(size_t(planes), bandPixels);
+                float* scratch[kPlaneCount] = {};
+                for (int k = 0; k < planes; ++k) scratch[k] = lease[size_t(k)] + margin;
                 std::vector<float> vcol(static_cast<size_t>(width));
                 for (int j = j0; j < j1; ++j) {
                     const int i = list[size_t(j)];
