@@ -143,14 +143,16 @@ constexpr bool kMaskedEdges = !HWY_MEM_OPS_MIGHT_FAULT;
 /// dependency chains (exp2, the normal's power) overlap in the pipeline. Plane rows are `pitch`
 /// apart, row `base` first. kEdge blocks (near the left or right border, K = 1) give taps
 /// outside the row weight exactly 0, as the image border requires, and store only the lanes
-/// inside the row; they read past the row's ends either into zeroed margins (copied band
-/// planes) or, with kMaskedEdges, not at all (masked lanes load 0). Returns whether the
+/// inside the row. With kMaskedEdges their loads are masked (masked-off lanes load 0), so they
+/// never read past a row's ends, whether the planes are read in place or copied; elsewhere
+/// they read into the copied planes' zeroed margins. Returns whether the
 /// centre pixels' inputs are clean: sanitising them (pass 1 below) would change nothing (the
 /// tests are exactly the identity conditions of px::sanitize, sanitizeNormal, sanitizeDepth
 /// and sanitizePositive).
 template <int K, int kSquarings, bool kEdge, bool kId, bool kNormal, bool kVar>
 bool filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATrousPass::Settings& s,
-                  float* const* P, int base, const int32_t* ids, float* const oc[3], float* ov) {
+                  float* const* P, int base, const int32_t* ids, float* const oc[3], float* ov,
+                  bool checkVar) {
     static_assert(!kEdge || K == 1);
     const DF d;
     const DI di;
@@ -201,8 +203,11 @@ bool filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATro
         ar[k] = hn::Mul(kc, r);
         ag[k] = hn::Mul(kc, g);
         ab[k] = hn::Mul(kc, b);
-        const VF v = kVar ? load(P[VAR], ok, centreIn) : hn::Zero(d);
-        av[k] = hn::Mul(hn::Mul(kc, kc), v);
+        // The variance is checked wherever it is bound: the luminance weight's prefilter reads
+        // it even when the propagated variance is not wanted (checkVar without kVar).
+        const bool withVar = kVar || checkVar;
+        const VF v = withVar ? load(P[VAR], ok, centreIn) : hn::Zero(d);
+        av[k] = kVar ? hn::Mul(hn::Mul(kc, kc), v) : hn::Zero(d);
         // Separate comparisons: a maximum would drop a NaN (x86 max returns its second operand).
         MF c = hn::And(hn::And(hn::Le(hn::Abs(r), maxRadiance), hn::Le(hn::Abs(g), maxRadiance)),
                        hn::Le(hn::Abs(b), maxRadiance));
@@ -212,7 +217,7 @@ bool filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATro
             c = hn::And(c, hn::And(hn::And(hn::Le(hn::Abs(cnx[k]), maxNormal),
                                            hn::Le(hn::Abs(cny[k]), maxNormal)),
                                    hn::Le(hn::Abs(cnz[k]), maxNormal)));
-        if constexpr (kVar) c = hn::And(c, hn::And(hn::Ge(v, hn::Zero(d)), hn::Le(v, maxVar)));
+        if (withVar) c = hn::And(c, hn::And(hn::Ge(v, hn::Zero(d)), hn::Le(v, maxVar)));
         clean = k == 0 ? hn::Or(clean, c) : hn::And(clean, c);
     }
     const VF sigmaZ = hn::Set(d, -kLn2 * s.sigmaZ), sigmaN = hn::Set(d, s.sigmaN);
@@ -360,7 +365,7 @@ bool filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATro
         }
     }
     return hn::AllTrue(d, clean);
-}  // namespace
+}
 
 /// Rows [y0, y1): whole vectors where every tap is inside the row, edge blocks (masked taps,
 /// partial last vector) near the borders. Which pixels take which path depends only on the
@@ -368,7 +373,7 @@ bool filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATro
 template <int kSquarings, bool kId, bool kNormal, bool kVar>
 void filterRange(int y0, int y1, int width, size_t pitch, int height, const ATrousPass::Settings& s,
                  float* const* P, int base, const int32_t* ids, const ImageView& outColor,
-                 const ImageView* outVar, uint8_t* rowClean) {
+                 const ImageView* outVar, uint8_t* rowClean, bool checkVar) {
     // Two vectors per block: on AVX-512 (1080p, 1 thread, min of 7) 52.8-55.2 ms at step 1
     // against 54.5-56.9 ms for one vector, equal at step 16.
     constexpr int K = 2;
@@ -381,7 +386,7 @@ void filterRange(int y0, int y1, int width, size_t pitch, int height, const ATro
         auto block = [&](auto k, auto edge, int x) {
             clean &=
                 filterBlocks<decltype(k)::value, kSquarings, decltype(edge)::value, kId, kNormal,
-                             kVar>(x, y, width, pitch, height, s, P, base, ids, oc, ov);
+                             kVar>(x, y, width, pitch, height, s, P, base, ids, oc, ov, checkVar);
         };
         using One = std::integral_constant<int, 1>;
         using Two = std::integral_constant<int, K>;
@@ -419,12 +424,13 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
 
     // The image is filtered in bands of rows, each with private scratch planes covering the
     // band and the rows its taps reach (2 step above and below): scratch then scales with the
-    // band, not the frame (about 20 MB per thread at 1080p and step 16 instead of 110 MB), at
-    // the cost of recomputing the halo rows' terms. Every value depends only on its pixel's
-    // neighbourhood, so results do not depend on the banding. Band rows are `pitch` apart, each
-    // followed by a zeroed margin of the reach plus one vector (which is also the next row's
-    // left margin; the first row has one before it), so that the kernel's vectors may read past
-    // a row's ends (filterBlocks' edge blocks mask those taps).
+    // band, not the frame (at 1080p and step 16, 13 planes of 128 rows, ~13 MB per thread, and
+    // 4 planes when the band reads its inputs in place, instead of ~108 MB), at the cost of
+    // recomputing the halo rows' terms. Every value depends only on its pixel's neighbourhood,
+    // so results do not depend on the banding. Copied bands' rows are `pitch` apart, each
+    // followed by a margin of the reach plus one vector (which is also the next row's left
+    // margin; the first row has one before it), zeroed where the edge vectors' loads are not
+    // masked (!kMaskedEdges), so that they may read past a row's ends.
     // Bands of 64 rows (twice the reach from step 16 on): the halo is then a quarter of the
     // band at step 4 (it was half with 32-row bands: 57-62 against 66-70 ms, 1 thread), and the
     // largest scratch, step 16's 64 + 2 x 32 rows, stays the same.
@@ -446,7 +452,8 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
     // then filtered again from sanitised copies. Both ways give the same values to the same
     // kernel, so the output does not depend on which was taken.
     std::vector<uint8_t> rowClean(size_t(height), 0);
-    const bool tryInPlace = kMaskedEdges && (var == nullptr) == (outVar == nullptr);
+    const bool tryInPlace = kMaskedEdges;
+    const bool checkVar = var != nullptr;
     auto filterBands = [&](const std::vector<int>& list, bool inPlace) {
         ctx.parallel->forRange(
             0, int(list.size()),
@@ -484,8 +491,9 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
                             lumaRow(P[R] + o, P[G] + o, P[B] + o, P[L] + o, width);
                         }
                     }
-                    // Margins: zero (finite: a masked tap multiplies them by 0).
-                    for (int k = 0; k < kPlaneCount && !inPlace; ++k) {
+                    // Margins: zero (finite: a tap outside the row has weight 0, which multiplies
+                    // them).
+                    for (int k = 0; k < kPlaneCount && !inPlace && !kMaskedEdges; ++k) {
                         std::fill_n(P[k] - margin, margin, 0.f);
                         for (int y = base; y < p1; ++y)
                             std::fill_n(P[k] + off(y) + width, margin, 0.f);
@@ -544,11 +552,11 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
                         if (s.sigmaN == 128.f)
                             filterRange<7, kId, kNormal, kVar>(y0, y1, width, bandPitch, height, s,
                                                                P, base, bandIds, outColor, outVar,
-                                                               rowClean.data());
+                                                               rowClean.data(), checkVar);
                         else
                             filterRange<0, kId, kNormal, kVar>(y0, y1, width, bandPitch, height, s,
                                                                P, base, bandIds, outColor, outVar,
-                                                               rowClean.data());
+                                                               rowClean.data(), checkVar);
                     };
                     using T = std::true_type;
                     using F = std::false_type;

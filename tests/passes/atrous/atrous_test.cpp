@@ -2,6 +2,7 @@
 #include <kestrel/PixelMath.h>
 #include <kestrel/Scratch.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -317,6 +318,9 @@ TEST(ATrous, ScratchScalesWithTheBandNotTheFrame) {
     RandomGBuffer g = randomGBuffer(w, h, 5);
     Scene s{clone(g.color), scalar(w, h, [](int, int) { return 0.1f; }), clone(g.depth),
             clone(g.normal), clone(g.ids)};
+    // One NaN: the bands around it are filtered from copies, the largest scratch (where masked
+    // loads are available, the other bands read in place with 4 planes).
+    s.color.at(0, 5, 200) = std::numeric_limits<float>::quiet_NaN();
     runATrous(s, {{"step", int64_t(16)}}, 2);
     // At most one set per thread, each 13 planes of 64 + 2 * 32 rows of w + 32 + 16 columns
     // (a row, then its margin of the reach plus one vector of up to 16 lanes): well under what
@@ -332,50 +336,100 @@ TEST(ATrous, VectorisedMatchesScalarReferenceOnExtremeInputs) {
     for (int step : {1, 4, 16}) expectATrousEquivalent(157, 41, step, 40 + step, true, 2);
 }
 
-// The pass reads clean inputs in place and filters a band from sanitised copies when any of its
-// rows (halo included) holds a value the sanitisers change. Scene `dirty` differs from `clean`
-// only by such values, each sanitising to the clean scene's value (NaN colour -> 0, NaN depth ->
-// background, normal component 3 -> 0, negative variance -> 0): the outputs must be bit-identical,
-// with some bands taken in place and others copied (dirty rows at the top, in the middle band,
-// at the bottom; in the first and last columns).
+// The pass reads clean inputs in place and filters a band again from sanitised copies when any
+// of its rows, halo included, holds a value the sanitisers change. Scene `dirty` differs from
+// `clean` only by such values, each sanitising to the clean scene's value: the outputs must be
+// bit-identical. One kind of value per scene (every component, every bound), so each of the
+// kernel's checks is needed. 150 rows are three bands of 64 rows (the last 22); the dirty row
+// of each step lies in band 1's own rows (step 16) or band 0's (steps 1, 4) and in the next
+// band's halo only, so that band is redone for its halo alone while band 2 (steps 1, 4) or
+// band 0 (step 16) reads in place.
+namespace {
+struct DirtyKind {
+    const char* what;
+    Image Scene::*plane;
+    int channel;
+    float clean, dirty;          // px::sanitize*(dirty) == clean
+    bool allBackground = false;  // every depth at the background (else 2e10 would weigh as 1e10)
+};
+}  // namespace
+
 TEST(ATrous, ReadingInPlaceAndFromSanitisedCopiesAgree) {
     const int w = 157, h = 150;
     RandomGBuffer g = randomGBuffer(w, h, 21);
     Image var = scalar(w, h, [](int x, int y) { return 0.01f + hash01(x, y, 24); });
     const float nan = std::numeric_limits<float>::quiet_NaN();
-    const int spots[][2] = {{0, 0}, {w - 1, 100}, {5, h - 1}};
-    // One kind of dirty value per scene, so that each of the kernel's checks is needed.
-    for (int kind = 0; kind < 4; ++kind) {
-        Scene clean{clone(g.color), clone(var), clone(g.depth), clone(g.normal), clone(g.ids)};
-        Scene dirty = clean.copy();
-        for (const auto& p : spots) {
-            const int x = p[0], y = p[1];
-            switch (kind) {
-                case 0:
-                    clean.color.at(1, x, y) = 0.f;
-                    dirty.color.at(1, x, y) = nan;
-                    break;
-                case 1:
-                    clean.depth.at(0, x, y) = kBackgroundDepth;
-                    dirty.depth.at(0, x, y) = nan;
-                    break;
-                case 2:
-                    clean.normal.at(2, x, y) = 0.f;
-                    dirty.normal.at(2, x, y) = 3.f;
-                    break;
-                default:
-                    clean.var.at(0, x, y) = 0.f;
-                    dirty.var.at(0, x, y) = -1.f;
+    const float inf = std::numeric_limits<float>::infinity();
+    const DirtyKind kinds[] = {
+        {"colour R NaN", &Scene::color, 0, 0.f, nan},
+        {"colour G +Inf", &Scene::color, 1, 0.f, inf},
+        {"colour B above 1e16", &Scene::color, 2, px::kMaxRadiance, 3e16f},
+        {"colour R below -1e16", &Scene::color, 0, -px::kMaxRadiance, -5e16f},
+        {"normal X 3", &Scene::normal, 0, 0.f, 3.f},
+        {"normal Y NaN", &Scene::normal, 1, 0.f, nan},
+        {"normal Z -2.5", &Scene::normal, 2, 0.f, -2.5f},
+        {"depth NaN", &Scene::depth, 0, kBackgroundDepth, nan},
+        {"depth negative", &Scene::depth, 0, kBackgroundDepth, -1.f},
+        {"depth beyond the background", &Scene::depth, 0, kBackgroundDepth, 2e10f, true},
+        {"variance negative", &Scene::var, 0, 0.f, -1.f},
+        {"variance NaN", &Scene::var, 0, 0.f, nan},
+        {"variance above 1e32", &Scene::var, 0, 1e32f, 1e33f},
+    };
+    const std::pair<int, int> stepRows[] = {{1, 63}, {4, 60}, {16, 127}};
+    for (const DirtyKind& kind : kinds) {
+        for (const auto& [step, row] : stepRows) {
+            Scene clean{clone(g.color), clone(var), clone(g.depth), clone(g.normal), clone(g.ids)};
+            if (kind.allBackground)
+                std::fill_n(clean.depth.channel(0), size_t(w) * size_t(h), kBackgroundDepth);
+            Scene dirty = clean.copy();
+            for (int x : {0, 80, w - 1}) {
+                (clean.*kind.plane).at(kind.channel, x, row) = kind.clean;
+                (dirty.*kind.plane).at(kind.channel, x, row) = kind.dirty;
             }
-        }
-        for (int step : {1, 4, 16}) {
             auto a = runATrous(clean, {{"step", int64_t(step)}}, 1);
             auto b = runATrous(dirty, {{"step", int64_t(step)}}, 2);
             EXPECT_TRUE(identical(a.out("color"), b.out("color")))
-                << "kind " << kind << ", step " << step;
+                << kind.what << ", step " << step;
             EXPECT_TRUE(identical(a.out("variance"), b.out("variance")))
-                << "kind " << kind << ", step " << step;
+                << kind.what << ", step " << step;
             EXPECT_TRUE(allFinite(b.out("color")) && allFinite(b.out("variance")));
+        }
+    }
+}
+
+// The same with the variance bound but its output not wanted (svgf.json's last iteration): the
+// variance still weighs the luminance term, so it is still checked; with sigma_n = 0 (normals
+// unused) and on an image narrower than a vector.
+TEST(ATrous, ReadingInPlaceAgreesWithoutVarianceOutputWithoutNormalsAndWhenNarrow) {
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    for (const int w : {157, 7}) {
+        const int h = 150;
+        RandomGBuffer g = randomGBuffer(w, h, 31);
+        Image var = scalar(w, h, [](int x, int y) { return 0.01f + hash01(x, y, 34); });
+        Scene clean{clone(g.color), clone(var), clone(g.depth), clone(g.normal), clone(g.ids)};
+        Scene dirty = clean.copy();
+        clean.var.at(0, w - 1, 63) = 0.f;
+        dirty.var.at(0, w - 1, 63) = -1.f;
+        clean.color.at(0, 0, 10) = 0.f;
+        dirty.color.at(0, 0, 10) = nan;
+        for (double sigmaN : {128.0, 0.0}) {
+            auto run = [&](const Scene& s, int threads) {
+                auto hr = PassHarness::make<ATrousPass>(
+                    {w, h}, {{"step", int64_t(1)}, {"sigmaN", sigmaN}}, threads);
+                hr.bind("color", s.color);
+                hr.bind("variance", s.var);
+                hr.bind("depth", s.depth);
+                hr.bind("normal", s.normal);
+                hr.bind("objectId", s.id);
+                hr.useOutputs({"color"});
+                hr.run();
+                return hr;
+            };
+            auto a = run(clean, 1);
+            auto b = run(dirty, 2);
+            EXPECT_TRUE(identical(a.out("color"), b.out("color")))
+                << "width " << w << ", sigmaN " << sigmaN;
+            EXPECT_TRUE(allFinite(b.out("color")));
         }
     }
 }
