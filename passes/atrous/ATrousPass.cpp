@@ -135,11 +135,8 @@ using simd::VF;
 using simd::VI;
 
 /// Where masked loads cannot fault, edge vectors load with a mask of the lanes inside the row,
-/// so the planes need no margins and the filter can read its inputs in place. Only AVX-512
-/// suppresses faults of masked-off lanes in hardware: Highway's scalar target also reports
-/// HWY_MEM_OPS_MIGHT_FAULT 0, but its MaskedLoad reads the lane anyway (found by ASan in the
-/// sanitizer build, which has no -march=native).
-constexpr bool kMaskedEdges = HWY_ARCH_X86 && HWY_TARGET <= HWY_AVX3 && !HWY_MEM_OPS_MIGHT_FAULT;
+/// so the planes need no margins and the filter can read its inputs in place.
+constexpr bool kMaskedEdges = simd::kMaskedLoadsCannotFault;
 
 /// The filter for K consecutive vectors of pixels (x0 .. x0 + K lanes) of row y. The centres'
 /// terms and the accumulators stay in registers while the taps stream by, and independent
@@ -183,9 +180,10 @@ bool filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATro
     VF cz[K], cl[K], cgx[K], cgy[K], nInvL[K], cnx[K], cny[K], cnz[K], epsZ[K];
     VI cid[K];
     VF aw[K], ar[K], ag[K], ab[K], av[K];
-    MF clean = hn::Not(centreIn);  // lanes outside the row do not count
-    const VF maxRadiance = hn::Set(d, px::kMaxRadiance), maxNormal = hn::Set(d, 2.f);
-    const VF background = hn::Set(d, kBackgroundDepth), maxVar = hn::Set(d, kMaxVariance);
+    MF clean = hn::FirstN(d, n);
+    // Clean: the sanitiser (the vector forms of pass 1's) returns the value itself; NaN never
+    // compares equal, and +-0 are returned as they are.
+    auto same = [](VF v, VF sanitised) HWY_ATTR { return hn::Eq(sanitised, v); };
 #pragma GCC unroll 4
     for (int k = 0; k < K; ++k) {
         const ptrdiff_t ok = o + ptrdiff_t(k * n);
@@ -211,18 +209,17 @@ bool filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATro
         const bool withVar = kVar || checkVar;
         const VF v = withVar ? load(P[VAR], ok, centreIn) : hn::Zero(d);
         av[k] = kVar ? hn::Mul(hn::Mul(kc, kc), v) : hn::Zero(d);
-        // Separate comparisons: a maximum would drop a NaN (x86 max returns its second operand).
-        MF c = hn::And(hn::And(hn::Le(hn::Abs(r), maxRadiance), hn::Le(hn::Abs(g), maxRadiance)),
-                       hn::Le(hn::Abs(b), maxRadiance));
-        c = hn::And(c, hn::Or(hn::And(hn::Ge(cz[k], hn::Zero(d)), hn::Lt(cz[k], background)),
-                              hn::Eq(cz[k], background)));
+        MF c = hn::And(hn::And(same(r, simd::sanitize(r)), same(g, simd::sanitize(g))),
+                       same(b, simd::sanitize(b)));
+        c = hn::And(c, same(cz[k], simd::sanitizeDepth(cz[k])));
         if constexpr (kNormal)
-            c = hn::And(c, hn::And(hn::And(hn::Le(hn::Abs(cnx[k]), maxNormal),
-                                           hn::Le(hn::Abs(cny[k]), maxNormal)),
-                                   hn::Le(hn::Abs(cnz[k]), maxNormal)));
-        if (withVar) c = hn::And(c, hn::And(hn::Ge(v, hn::Zero(d)), hn::Le(v, maxVar)));
-        clean = k == 0 ? hn::Or(clean, c) : hn::And(clean, c);
+            c = hn::And(c, hn::And(hn::And(same(cnx[k], simd::sanitizeNormal(cnx[k])),
+                                           same(cny[k], simd::sanitizeNormal(cny[k]))),
+                                   same(cnz[k], simd::sanitizeNormal(cnz[k]))));
+        if (withVar) c = hn::And(c, same(v, simd::sanitizePositive(v, kMaxVariance)));
+        clean = hn::And(clean, c);
     }
+    clean = hn::Or(clean, hn::Not(centreIn));  // lanes outside the row do not count
     const VF sigmaZ = hn::Set(d, -kLn2 * s.sigmaZ), sigmaN = hn::Set(d, s.sigmaN);
     const VF zeroWeight = hn::Set(d, kZeroWeight), two = hn::Set(d, 2.f);
     const VF minDot = hn::Set(d, kMinDot), one = hn::Set(d, 1.f), zero = hn::Zero(d);

@@ -30,6 +30,13 @@ using VF = hn::Vec<DF>;
 using VI = hn::Vec<DI>;
 using MF = hn::Mask<DF>;
 
+/// Whether hn::MaskedLoad never touches masked-off lanes, so it may be given addresses past an
+/// allocation's ends. Only AVX-512 suppresses those faults in hardware: Highway's scalar target
+/// also reports HWY_MEM_OPS_MIGHT_FAULT 0, but its MaskedLoad reads the lane anyway (a heap
+/// overflow ASan found in the A-Trous pass on a build without -march=native).
+constexpr bool kMaskedLoadsCannotFault =
+    HWY_ARCH_X86 && HWY_TARGET <= HWY_AVX3 && !HWY_MEM_OPS_MIGHT_FAULT;
+
 /// Lanes per vector of the build's target.
 inline size_t lanes() {
     return hn::Lanes(DF());
