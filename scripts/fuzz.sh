@@ -16,7 +16,7 @@ need=()
 command -v clang++ >/dev/null 2>&1 || need+=(clang)
 compgen -G "/usr/lib/llvm-*/lib/clang/*/lib/linux/libclang_rt.fuzzer-x86_64.a" >/dev/null ||
   need+=(libclang-rt-14-dev)
-dpkg -s libgtest-dev libopenexr-dev >/dev/null 2>&1 || bash scripts/setup.sh >/dev/null
+dpkg -s libgtest-dev libopenexr-dev libdeflate-dev >/dev/null 2>&1 || bash scripts/setup.sh >/dev/null
 if ((${#need[@]})); then
   echo "fuzz: installing ${need[*]}"
   sudo=""

@@ -14,7 +14,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # Packages: setup.sh installs them (and builds the Release tree); skipped when present.
-dpkg -s libgtest-dev libopenexr-dev >/dev/null 2>&1 || bash scripts/setup.sh
+dpkg -s libgtest-dev libopenexr-dev libdeflate-dev >/dev/null 2>&1 || bash scripts/setup.sh
 
 build=${KESTREL_ASAN_BUILD_DIR:-build-asan}
 jobs=$(nproc)

@@ -317,13 +317,31 @@ ExrInput::ExrInput(const std::string& path, int64_t maxPixels) : path_(path) {
                         std::to_string(uint64_t(maxPixels) * kMaxBytesPerPixel) +
                         " (refused before allocating)");
 
-        stream_->seekg(0);
-        file_ = std::make_unique<Imf::InputFile>(*stream_, Imf::globalThreadCount());
+        header_ = probe;
+        zip_ = ZipScanlines::plan(path, probe, !multiPart && !tiled(probe), *stream_, headersEnd,
+                                  fileSize);
+        if (!zip_) openFile();
     } catch (const Error&) {
         throw;
     } catch (const std::exception& e) {
         throw Error(std::string("corrupt or unreadable OpenEXR header: ") + e.what());
     }
+}
+
+void ExrInput::openFile() {
+    stream_->seekg(0);
+    file_ = std::make_unique<Imf::InputFile>(*stream_, Imf::globalThreadCount());
+}
+
+Imf::InputFile& ExrInput::file() {
+    if (!file_) {
+        try {
+            openFile();
+        } catch (const std::exception& e) {
+            throw Error(std::string("corrupt or unreadable OpenEXR header: ") + e.what());
+        }
+    }
+    return *file_;
 }
 
 ExrInput::~ExrInput() = default;

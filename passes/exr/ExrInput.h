@@ -3,7 +3,9 @@
 // checked BEFORE OpenEXR allocates it -- attribute sizes against the bytes left in the file (a
 // 500-byte file can declare a 2 GB attribute), the windows against a pixel limit (or a 100000 x
 // 100000 data window), the chunk offset tables against the file size, the chunk buffers against
-// the pixel limit -- then the same stream is handed to Imf::InputFile.
+// the pixel limit -- then the same stream is handed to Imf::InputFile, or, for single-part
+// scan-line ZIP/ZIPS files, the offset table to ZipScanlines (InputFile is then opened only if
+// that path finds the file damaged).
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfIO.h>
 #include <OpenEXR/ImfInputFile.h>
@@ -12,14 +14,10 @@
 #include <memory>
 #include <string>
 
-namespace kestrel::exr {
+#include "Box.h"
+#include "ZipScanlines.h"
 
-struct Box {
-    int x0 = 0, y0 = 0, x1 = -1, y1 = -1;  // inclusive, as EXR windows
-    int64_t width() const { return int64_t(x1) - x0 + 1; }
-    int64_t height() const { return int64_t(y1) - y0 + 1; }
-    bool operator==(const Box&) const = default;
-};
+namespace kestrel::exr {
 
 class ExrInput {
 public:
@@ -31,15 +29,23 @@ public:
     ~ExrInput();
 
     const std::string& path() const { return path_; }
-    const Imf::Header& header() const { return file_->header(); }
-    Imf::InputFile& file() { return *file_; }
+    const Imf::Header& header() const { return header_; }
+    /// OpenEXR's reader, opened on first use when the ZIP fast path is there (its line buffers
+    /// are then never allocated unless that path finds the file damaged).
+    Imf::InputFile& file();
+    /// The fast path for single-part scan-line ZIP/ZIPS files, else nullptr.
+    const ZipScanlines* zip() const { return zip_.get(); }
     Box dataWindow() const { return data_; }
     Box displayWindow() const { return display_; }
 
 private:
+    void openFile();
+
     std::string path_;
     std::unique_ptr<Imf::IStream> stream_;
     std::unique_ptr<Imf::InputFile> file_;
+    Imf::Header header_;
+    std::unique_ptr<ZipScanlines> zip_;
     Box data_, display_;
 };
 

@@ -60,11 +60,13 @@ void floatsToIds(float* plane, size_t n, IdRule rule) {
         std::memcpy(plane + i, &id, 4);
     }
 }
-/// Decodes `chans` of `in` into display-window planes (W x H of `dp`); pixels outside the data
-/// window get the channel's fill value. Throws what OpenEXR throws.
+/// Decodes `chans` of `in` into display-window planes (W x H of `dp`) on up to `threads`
+/// threads; pixels outside the data window get the channel's fill value. ZIP/ZIPS scan-line
+/// files take the fast path (ZipScanlines.h); the rest, and files it finds damaged, are read
+/// by OpenEXR. Throws what OpenEXR throws.
 void readChannels(ExrInput& in, const Box& dp, int W, size_t N,
                   const std::vector<std::pair<std::string, float*>>& chans,
-                  const std::vector<float>& fillv) {
+                  const std::vector<float>& fillv, int threads) {
     const Box dw = in.dataWindow();
     const bool covers = dw.x0 <= dp.x0 && dw.y0 <= dp.y0 && dw.x1 >= dp.x1 && dw.y1 >= dp.y1;
     const bool inside = dw.x0 >= dp.x0 && dw.y0 >= dp.y0 && dw.x1 <= dp.x1 && dw.y1 <= dp.y1;
@@ -73,6 +75,11 @@ void readChannels(ExrInput& in, const Box& dp, int W, size_t N,
     const int ix0 = std::max(dw.x0, dp.x0), ix1 = std::min(dw.x1, dp.x1);
     const int iy0 = std::max(dw.y0, dp.y0), iy1 = std::min(dw.y1, dp.y1);
     if (ix0 > ix1 || iy0 > iy1) return;  // no overlap: fill values only
+    if (const ZipScanlines* zip = in.zip()) {
+        std::string why;
+        if (zip->decode(dp, W, chans, fillv, threads, &why)) return;
+        spdlog::debug("ExrLoader: {}: {}; reading it through OpenEXR", in.path(), why);
+    }
     Imf::FrameBuffer fb;
     std::vector<float> clip;  // only when the data window pokes out of the display
     const size_t dwW = size_t(dw.width()), rows = size_t(iy1 - iy0 + 1);
@@ -205,9 +212,9 @@ void ExrLoader::startPrefetch(int64_t frame, const std::map<ChannelRef, float>& 
     cancel_ = false;
     Prefetch* P = pending_.get();
     const Box display = display_;
-    prefetchJob_ =
-        std::async(std::launch::async, [this, P, roles = std::move(roles), chans = std::move(chans),
-                                        fillv = std::move(fillv), display, W, N] {
+    prefetchJob_ = std::async(
+        std::launch::async, [this, P, roles = std::move(roles), chans = std::move(chans),
+                             fillv = std::move(fillv), display, W, N, threads = threads_] {
             try {
                 for (const auto& role : roles) {
                     if (cancel_) return;
@@ -218,7 +225,8 @@ void ExrLoader::startPrefetch(int64_t frame, const std::map<ChannelRef, float>& 
                 for (size_t k = 0; k < roles.size(); ++k) {
                     if (cancel_) return;
                     if (!chans[k].empty())
-                        readChannels(*P->open[k].second, display, W, N, chans[k], fillv[k]);
+                        readChannels(*P->open[k].second, display, W, N, chans[k], fillv[k],
+                                     threads);
                 }
                 P->ok = true;
             } catch (...) {
@@ -430,8 +438,9 @@ std::optional<Extent> ExrLoader::beginFrame(FrameContext& ctx) {
     ensurePlan(ctx.frameNumber, nullptr);
     joinPrefetch();  // before the pool is resized: the read-ahead decodes on it
     // OpenEXR decodes line blocks on its own global pool (the engine's thread count).
-    int threads = ctx.parallel ? ctx.parallel->threadCount() : 1;
+    const int threads = ctx.parallel ? ctx.parallel->threadCount() : 1;
     if (Imf::globalThreadCount() < threads) Imf::setGlobalThreadCount(threads);
+    threads_ = threads;
 
     if (haveLast_ && ctx.frameNumber > frame_) step_ = ctx.frameNumber - frame_;
     haveLast_ = true;
@@ -546,7 +555,8 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
         std::vector<float> fillv;
         for (const auto& [name, plane] : chans) fillv.push_back(fills[{role, name}]);
         try {
-            readChannels(in, display_, W, N, chans, fillv);
+            readChannels(in, display_, W, N, chans, fillv,
+                         ctx.parallel ? ctx.parallel->threadCount() : 1);
         } catch (const std::exception& e) {
             throw FrameError("frame " + std::to_string(frame_) + ": " + in.path() +
                              ": cannot read pixels (corrupt or truncated): " + e.what());

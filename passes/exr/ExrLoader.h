@@ -58,6 +58,7 @@ private:
     // parameters
     std::string path_, layoutParam_, cameraParam_, channelsParam_;
     int64_t maxPixels_;
+    int threads_ = 1;  // the engine's, for decoding (set by beginFrame)
     bool prefetch_ = true;
 
     // compile-time state (from the first frame; immutable while frames run)

@@ -51,6 +51,38 @@ BENCHMARK(BM_ATrous)
     ->UseRealTime()
     ->MinTime(1.0);
 
+// Per-pixel cost against the working set: state.range(0) x state.range(1) pixels at step
+// state.range(2), 1 thread. A small image's planes stay in L2 between runs, so the difference
+// to 1920x1080 is what the memory hierarchy costs (docs/benchmarks.md, roofline notes).
+void BM_ATrousSize(benchmark::State& state) {
+    const int w = int(state.range(0)), ht = int(state.range(1));
+    RandomGBuffer g = randomGBuffer(w, ht, 1);
+    Image var = scalar(w, ht, [](int x, int y) { return 0.01f + 0.1f * hash01(x, y, 9); });
+    auto h = PassHarness::make<ATrousPass>({w, ht}, {{"step", int64_t(state.range(2))}}, 1);
+    h.bind("color", g.color);
+    h.bind("variance", var);
+    h.bind("depth", g.depth);
+    h.bind("normal", g.normal);
+    h.bind("objectId", g.ids);
+    h.run();
+    for (auto _ : state) {
+        h.run();
+        benchmark::DoNotOptimize(h.out("color").channel(0)[0]);
+    }
+    // kInvert of a rate: seconds per pixel, scaled to nanoseconds.
+    state.counters["ns/px"] =
+        benchmark::Counter(double(w) * double(ht) * double(state.iterations()) * 1e-9,
+                           benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_ATrousSize)
+    ->Args({1920, 1080, 1})
+    ->Args({512, 64, 1})
+    ->Args({256, 32, 1})
+    ->Args({1920, 16, 1})
+    ->ArgNames({"w", "h", "step"})
+    ->UseRealTime()
+    ->MinTime(0.3);
+
 }  // namespace
 
 BENCHMARK_MAIN();

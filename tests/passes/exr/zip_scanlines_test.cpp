@@ -1,0 +1,359 @@
+// The ZIP/ZIPS fast path (passes/exr/ZipScanlines.h) against OpenEXR's own reader: the same
+// bits in every plane for every pixel type, window layout, line order and thread count, chunks
+// stored uncompressed, and damaged files refused (so that the loader reads them through
+// OpenEXR, which reports the damage).
+#include <Imath/half.h>
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfInputFile.h>
+#include <OpenEXR/ImfOutputFile.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstring>
+#include <fstream>
+#include <functional>
+#include <random>
+
+#include "ExrInput.h"
+#include "ExrLoader.h"
+#include "exr_test_util.h"
+#include "kestrel/testing/PassHarness.h"
+
+namespace {
+
+using namespace kestrel::exr;
+using exrtest::TempDir;
+namespace fs = std::filesystem;
+
+struct Spec {
+    Imf::Compression compression = Imf::ZIP_COMPRESSION;
+    Imath::Box2i data{{0, 0}, {0, 0}}, display{{0, 0}, {0, 0}};
+    Imf::LineOrder order = Imf::INCREASING_Y;
+    bool noise = true;   // random bits (incompressible); else smooth values (deflate shrinks them)
+    bool mixed = false;  // b and c random, a and d smooth: deflated chunks of varied bytes
+};
+
+/// Writes channels "a" (HALF), "b" (FLOAT), "c" (UINT) and "d" (FLOAT). Noise includes NaN,
+/// infinity and denormal bit patterns.
+void writeFile(const std::string& path, const Spec& s) {
+    Imf::Header h(s.display, s.data);
+    h.compression() = s.compression;
+    h.lineOrder() = s.order;
+    h.channels().insert("a", Imf::Channel(Imf::HALF));
+    h.channels().insert("b", Imf::Channel(Imf::FLOAT));
+    h.channels().insert("c", Imf::Channel(Imf::UINT));
+    h.channels().insert("d", Imf::Channel(Imf::FLOAT));
+    const int w = s.data.max.x - s.data.min.x + 1, ht = s.data.max.y - s.data.min.y + 1;
+    const size_t n = size_t(w) * size_t(ht);
+    std::vector<uint16_t> a(n);
+    std::vector<uint32_t> b(n), c(n), d(n);
+    std::mt19937 rng(uint32_t(w * 131 + ht));
+    for (size_t i = 0; i < n; ++i) {
+        if (s.mixed) {
+            const float v = float(i % size_t(w)) * 0.25f;
+            a[i] = Imath::half(v).bits();
+            b[i] = rng();
+            c[i] = rng();
+            std::memcpy(&d[i], &v, 4);
+        } else if (s.noise) {
+            a[i] = uint16_t(rng());
+            b[i] = rng();
+            c[i] = rng();
+            d[i] = rng();
+        } else {
+            float v = float(i % size_t(w)) * 0.25f;
+            Imath::half hv(v);
+            a[i] = hv.bits();
+            std::memcpy(&b[i], &v, 4);
+            c[i] = uint32_t(i / size_t(w));
+            v = 1.f / (1.f + float(i));
+            std::memcpy(&d[i], &v, 4);
+        }
+    }
+    Imf::FrameBuffer fb;
+    const ptrdiff_t origin = s.data.min.x + ptrdiff_t(s.data.min.y) * w;
+    auto slice = [&](Imf::PixelType t, void* p, size_t size) {
+        return Imf::Slice(t, static_cast<char*>(p) - origin * ptrdiff_t(size), size,
+                          size * size_t(w));
+    };
+    fb.insert("a", slice(Imf::HALF, a.data(), 2));
+    fb.insert("b", slice(Imf::FLOAT, b.data(), 4));
+    fb.insert("c", slice(Imf::UINT, c.data(), 4));
+    fb.insert("d", slice(Imf::FLOAT, d.data(), 4));
+    Imf::OutputFile out(path.c_str(), h);
+    out.setFrameBuffer(fb);
+    out.writePixels(ht);
+}
+
+using Planes = std::vector<std::vector<float>>;
+const float kUntouched = -12345.f;  // outside the data window: neither reader writes there
+
+/// Channels b, a, c (in that order) and "missing" (not in the file, fill 7), over the display.
+Planes readByOpenExr(const std::string& path, const Box& dp) {
+    const int W = int(dp.width());
+    const size_t N = size_t(W) * size_t(dp.height());
+    Planes p(4, std::vector<float>(N, kUntouched));
+    std::fill(p[3].begin(), p[3].end(), 7.f);  // OpenEXR fills the rows it reads; these fill all
+    Imf::InputFile f(path.c_str());
+    const Imath::Box2i dw = f.header().dataWindow();
+    const int ix0 = std::max(dw.min.x, dp.x0), ix1 = std::min(dw.max.x, dp.x1);
+    const int iy0 = std::max(dw.min.y, dp.y0), iy1 = std::min(dw.max.y, dp.y1);
+    if (ix0 > ix1 || iy0 > iy1) return p;
+    // Read the whole data window into a buffer, then keep the part inside the display.
+    const int w = dw.max.x - dw.min.x + 1, ht = dw.max.y - dw.min.y + 1;
+    const char* names[] = {"b", "a", "c"};
+    Planes full(3, std::vector<float>(size_t(w) * size_t(ht)));
+    Imf::FrameBuffer fb;
+    const ptrdiff_t origin = dw.min.x + ptrdiff_t(dw.min.y) * w;
+    for (int k = 0; k < 3; ++k)
+        fb.insert(names[k], Imf::Slice(Imf::FLOAT, (char*)(full[size_t(k)].data() - origin), 4,
+                                       4 * size_t(w)));
+    f.setFrameBuffer(fb);
+    f.readPixels(dw.min.y, dw.max.y);
+    for (int k = 0; k < 3; ++k)
+        for (int y = iy0; y <= iy1; ++y)
+            for (int x = ix0; x <= ix1; ++x)
+                p[size_t(k)][size_t(y - dp.y0) * size_t(W) + size_t(x - dp.x0)] =
+                    full[size_t(k)][size_t(y - dw.min.y) * size_t(w) + size_t(x - dw.min.x)];
+    return p;
+}
+
+Planes readFast(const std::string& path, const Box& dp, int threads, ZipScanlines::Stats* stats,
+                bool* ok = nullptr, std::string* why = nullptr) {
+    ExrInput in(path, int64_t(1) << 27);
+    EXPECT_NE(in.zip(), nullptr) << path;
+    const int W = int(dp.width());
+    const size_t N = size_t(W) * size_t(dp.height());
+    Planes p(4, std::vector<float>(N, kUntouched));
+    if (!in.zip()) return p;
+    std::vector<std::pair<std::string, float*>> chans = {
+        {"b", p[0].data()}, {"a", p[1].data()}, {"c", p[2].data()}, {"missing", p[3].data()}};
+    std::string reason;
+    const bool good = in.zip()->decode(dp, W, chans, {0.f, 0.f, 0.f, 7.f}, threads, &reason, stats);
+    if (ok) *ok = good;
+    if (why) *why = reason;
+    if (!ok) {
+        EXPECT_TRUE(good) << reason;
+    }
+    return p;
+}
+
+void expectSameBits(const Planes& want, const Planes& got, const std::string& what) {
+    ASSERT_EQ(want.size(), got.size());
+    for (size_t k = 0; k < want.size(); ++k) {
+        ASSERT_EQ(want[k].size(), got[k].size());
+        size_t diff = 0, first = 0;
+        for (size_t i = 0; i < want[k].size(); ++i)
+            if (std::memcmp(&want[k][i], &got[k][i], 4) != 0 && diff++ == 0) first = i;
+        EXPECT_EQ(diff, 0u) << what << ": plane " << k << ", first at " << first;
+    }
+}
+
+Box toBox(const Imath::Box2i& b) {
+    return {b.min.x, b.min.y, b.max.x, b.max.y};
+}
+
+TEST(ZipScanlines, SameBitsAsOpenExrForEveryLayout) {
+    TempDir dir("zipfast");
+    struct Case {
+        const char* what;
+        Spec spec;
+    };
+    const Case cases[] = {
+        {"ZIP 37x35 (a partial last chunk)",
+         {Imf::ZIP_COMPRESSION, {{0, 0}, {36, 34}}, {{0, 0}, {36, 34}}}},
+        {"ZIPS 37x35", {Imf::ZIPS_COMPRESSION, {{0, 0}, {36, 34}}, {{0, 0}, {36, 34}}}},
+        {"ZIP smooth 300x40",
+         {Imf::ZIP_COMPRESSION,
+          {{0, 0}, {299, 39}},
+          {{0, 0}, {299, 39}},
+          Imf::INCREASING_Y,
+          false}},
+        {"ZIP decreasing y",
+         {Imf::ZIP_COMPRESSION, {{0, 0}, {40, 50}}, {{0, 0}, {40, 50}}, Imf::DECREASING_Y, false}},
+        {"ZIP 53x41, half noise",
+         {Imf::ZIP_COMPRESSION,
+          {{0, 0}, {52, 40}},
+          {{0, 0}, {52, 40}},
+          Imf::INCREASING_Y,
+          false,
+          true}},
+        {"ZIPS 53x41, half noise",
+         {Imf::ZIPS_COMPRESSION,
+          {{0, 0}, {52, 40}},
+          {{0, 0}, {52, 40}},
+          Imf::INCREASING_Y,
+          false,
+          true}},
+        {"ZIP 1x1", {Imf::ZIP_COMPRESSION, {{0, 0}, {0, 0}}, {{0, 0}, {0, 0}}}},
+        {"data window inside the display",
+         {Imf::ZIP_COMPRESSION, {{5, 3}, {30, 40}}, {{0, 0}, {47, 49}}, Imf::INCREASING_Y, false}},
+        {"data window beyond the display, negative origin",
+         {Imf::ZIP_COMPRESSION, {{-9, -20}, {50, 33}}, {{0, 0}, {39, 29}}}},
+        {"display with a non-zero origin",
+         {Imf::ZIPS_COMPRESSION,
+          {{10, 10}, {60, 44}},
+          {{20, 12}, {70, 40}},
+          Imf::INCREASING_Y,
+          false}},
+        {"no overlap", {Imf::ZIP_COMPRESSION, {{100, 100}, {120, 130}}, {{0, 0}, {19, 9}}}},
+    };
+    for (const Case& c : cases) {
+        const std::string path = (dir.path / "f.exr").string();
+        writeFile(path, c.spec);
+        const Box dp = toBox(c.spec.display);
+        const Planes want = readByOpenExr(path, dp);
+        for (int threads : {1, 2, 5}) {
+            ZipScanlines::Stats stats;
+            const Planes got = readFast(path, dp, threads, &stats);
+            if (c.spec.mixed) {  // the predictor's path, on varied bytes
+                EXPECT_EQ(stats.stored, 0) << c.what;
+            }
+            expectSameBits(want, got,
+                           std::string(c.what) + ", " + std::to_string(threads) + " threads");
+        }
+    }
+}
+
+TEST(ZipScanlines, ChunksStoredUncompressedAndDeflatedBothDecode) {
+    // Random bits do not deflate: OpenEXR stores such chunks as they are; smooth values deflate.
+    TempDir dir("zipraw");
+    const std::string path = (dir.path / "f.exr").string();
+    for (bool noise : {true, false}) {
+        Spec s{
+            Imf::ZIPS_COMPRESSION, {{0, 0}, {63, 7}}, {{0, 0}, {63, 7}}, Imf::INCREASING_Y, noise};
+        writeFile(path, s);
+        ZipScanlines::Stats stats;
+        const Planes got = readFast(path, toBox(s.display), 2, &stats);
+        expectSameBits(readByOpenExr(path, toBox(s.display)), got, noise ? "noise" : "smooth");
+        EXPECT_EQ(stats.chunks, 8);
+        if (noise)
+            EXPECT_EQ(stats.stored, 8) << "every chunk of noise is kept uncompressed";
+        else
+            EXPECT_EQ(stats.stored, 0) << "every smooth chunk deflates";
+    }
+}
+
+TEST(ZipScanlines, OnlyZipScanlineFilesTakeTheFastPath) {
+    TempDir dir("zipelig");
+    const Imath::Box2i dw{{0, 0}, {15, 15}};
+    exrtest::Channels ch{{"R", std::vector<float>(256, 0.5f)}};
+    struct Case {
+        Imf::Compression c;
+        bool tiled, fast;
+    };
+    for (const Case& c :
+         {Case{Imf::ZIP_COMPRESSION, false, true}, Case{Imf::ZIPS_COMPRESSION, false, true},
+          Case{Imf::PIZ_COMPRESSION, false, false}, Case{Imf::NO_COMPRESSION, false, false},
+          Case{Imf::ZIP_COMPRESSION, true, false}}) {
+        const fs::path p = dir.path / "e.exr";
+        exrtest::WriteOptions o;
+        o.compression = c.c;
+        o.tiled = c.tiled;
+        exrtest::writeExr(p, dw, ch, o);
+        ExrInput in(p.string(), int64_t(1) << 27);
+        EXPECT_EQ(in.zip() != nullptr, c.fast)
+            << "compression " << int(c.c) << (c.tiled ? " tiled" : "");
+    }
+}
+
+/// The file's bytes with `edit` applied.
+void rewrite(const std::string& path, const std::function<void(std::string&)>& edit) {
+    std::string bytes;
+    {
+        std::ifstream f(path, std::ios::binary);
+        bytes.assign(std::istreambuf_iterator<char>(f), {});
+    }
+    edit(bytes);
+    std::ofstream(path, std::ios::binary | std::ios::trunc)
+        .write(bytes.data(), std::streamsize(bytes.size()));
+}
+
+// The 4-entry offset table of the files below: its first entry points right past it.
+size_t tablePos(const std::string& b) {
+    for (size_t p = 8; p + 8 <= b.size(); ++p) {
+        uint64_t v;
+        std::memcpy(&v, b.data() + p, 8);
+        if (v == p + 32) return p;
+    }
+    ADD_FAILURE() << "no offset table found";
+    return 0;
+}
+void setOffset(std::string& b, int i, uint64_t v) {
+    std::memcpy(b.data() + tablePos(b) + size_t(i) * 8, &v, 8);
+}
+
+TEST(ZipScanlines, DamagedChunksAreRefusedWithTheChunkNamed) {
+    TempDir dir("zipbad");
+    const std::string path = (dir.path / "f.exr").string();
+    const Spec s{
+        Imf::ZIP_COMPRESSION, {{0, 0}, {99, 63}}, {{0, 0}, {99, 63}}, Imf::INCREASING_Y, false};
+    struct Case {
+        const char* what;
+        std::function<void(std::string&)> edit;
+        const char* reason;
+    };
+    // The chunks follow the header and the 4-entry offset table; the last chunk ends the file.
+    const Case cases[] = {
+        {"a flipped byte in the last chunk's deflate stream",
+         [](std::string& b) { b[b.size() - 40] = char(b[b.size() - 40] ^ 0x5a); }, "chunk 3"},
+        {"the file cut short", [](std::string& b) { b.resize(b.size() - 10); }, "chunk 3"},
+        {"an offset past the end of the file",
+         [](std::string& b) { setOffset(b, 1, b.size() + 5); }, "chunk 1: offset"},
+        {"an offset into the header", [](std::string& b) { setOffset(b, 2, 8); },
+         "chunk 2: offset"},
+        {"two entries swapped (a chunk's line number is not its place)",
+         [](std::string& b) {
+             const size_t p = tablePos(b);
+             std::swap_ranges(b.begin() + ptrdiff_t(p), b.begin() + ptrdiff_t(p + 8),
+                              b.begin() + ptrdiff_t(p + 8));
+         },
+         "chunk 0: starts at line 16, expected 0"},
+    };
+    for (const Case& c : cases) {
+        writeFile(path, s);
+        rewrite(path, c.edit);
+        bool ok = true;
+        std::string why;
+        readFast(path, toBox(s.display), 2, nullptr, &ok, &why);
+        EXPECT_FALSE(ok) << c.what;
+        EXPECT_NE(why.find(c.reason), std::string::npos) << c.what << ": " << why;
+    }
+}
+
+TEST(ZipScanlines, TheLoaderFallsBackToOpenExrWhichRepairsAMissingOffset) {
+    // A file whose writer died before its offset table was filled has zeros there; OpenEXR
+    // rebuilds the table by walking the chunks, the fast path refuses it: the loader's planes
+    // must be those of the intact file.
+    TempDir dir("zipfallback");
+    exrtest::Channels ch;
+    for (const char* n : {"R", "G", "B"}) {
+        auto& v = ch[n];
+        for (int i = 0; i < 40 * 50; ++i) v.push_back(float(i % 97) * 0.01f + float(n[0]));
+    }
+    const Imath::Box2i dw{{0, 0}, {39, 49}};
+    exrtest::writeExr(dir.path / "f.0001.exr", dw, ch);
+    exrtest::writeExr(dir.path / "f.0002.exr", dw, ch);
+    rewrite((dir.path / "f.0002.exr").string(), [](std::string& b) { setOffset(b, 1, 0); });
+    bool ok = true;
+    std::string why;
+    readFast((dir.path / "f.0002.exr").string(), {0, 0, 39, 49}, 1, nullptr, &ok, &why);
+    ASSERT_FALSE(ok) << "the fast path must refuse the zeroed entry";
+    auto h = kestrel::testing::PassHarness::make<ExrLoader>(
+        {1, 1}, {{"path", (dir.path / "f.####.exr").string()}});
+    h.useOutputs({"color"});
+    std::vector<std::vector<float>> frames;
+    for (int f : {1, 2}) {
+        h.ctx.frameNumber = f;
+        h.run();
+        for (int c = 0; c < 3; ++c) {
+            const float* p = h.out("color").channel(c);
+            frames.emplace_back(p, p + 40 * 50);
+        }
+    }
+    for (int c = 0; c < 3; ++c)
+        EXPECT_EQ(frames[size_t(c)], frames[size_t(3 + c)]) << "channel " << c;
+}
+
+}  // namespace
