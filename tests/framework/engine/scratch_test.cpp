@@ -28,5 +28,22 @@ TEST(ScratchPool, ConcurrentLeasesNeverShareAndSetsAreReused) {
     EXPECT_EQ(ScratchPool::bytes(), held);
 }
 
+TEST(ScratchPool, EachPlaneGrowsOnlyToWhatItsLeasesAsk) {
+    // Leases of different shapes share sets (A-Trous: a few band-sized planes; variance
+    // estimation: more, smaller ones). The set holds, plane by plane, the largest size asked.
+    const size_t before = ScratchPool::bytes();
+    { auto a = ScratchPool::acquire(4, 100000); }  // the first free set: four large planes
+
+    const size_t afterLarge = ScratchPool::bytes();
+    {
+        auto a = ScratchPool::acquire(10, 20000);  // the same set: six more, smaller planes
+        a[9][19999] = 1.f;                         // the asked size is usable
+    }
+    const size_t grown = ScratchPool::bytes() - afterLarge;
+    // Six more planes of 20000 values, not six (or ten) of 100000.
+    EXPECT_LE(grown, 6 * 20000 * sizeof(float) + 6 * 4096) << "bytes added: " << grown;
+    EXPECT_GE(ScratchPool::bytes(), before);
+}
+
 }  // namespace
 }  // namespace kestrel
