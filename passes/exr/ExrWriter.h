@@ -30,6 +30,7 @@ private:
     std::unique_ptr<FramePattern> preview_;
     bool half_;
     std::string compression_;
+    int zipLevel_;
     float exposure_;
     ToneMap toneMap_;
 

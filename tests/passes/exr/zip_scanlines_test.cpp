@@ -1,7 +1,8 @@
 // The ZIP/ZIPS fast path (passes/exr/ZipScanlines.h) against OpenEXR's own reader: the same
 // bits in every plane for every pixel type, window layout, line order and thread count, chunks
 // stored uncompressed, and damaged files refused (so that the loader reads them through
-// OpenEXR, which reports the damage).
+// OpenEXR, which reports the damage). The writer's counterpart (ZipWriter.h): what it writes,
+// OpenEXR reads back bit for bit.
 #include <Imath/half.h>
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
@@ -13,10 +14,12 @@
 #include <cstring>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <random>
 
 #include "ExrInput.h"
 #include "ExrLoader.h"
+#include "ZipWriter.h"
 #include "exr_test_util.h"
 #include "kestrel/testing/PassHarness.h"
 
@@ -354,6 +357,127 @@ TEST(ZipScanlines, TheLoaderFallsBackToOpenExrWhichRepairsAMissingOffset) {
     }
     for (int c = 0; c < 3; ++c)
         EXPECT_EQ(frames[size_t(c)], frames[size_t(3 + c)]) << "channel " << c;
+}
+
+/// Writes `values` (per channel, W x H) with writeZipScanlines and reads every channel back
+/// through OpenEXR as stored (half as half bits, float as float bits).
+void roundTrip(const std::string& path, int W, int H, Imf::Compression c, int threads, int level,
+               const std::vector<std::pair<std::string, Imf::PixelType>>& channels, bool noise) {
+    Imf::Header h(W, H);
+    h.compression() = c;
+    std::vector<std::vector<uint32_t>> data;  // float bits, or half bits in the low 16
+    std::mt19937 rng(uint32_t(W * 7 + H));
+    std::vector<const void*> planes;
+    std::vector<std::vector<uint16_t>> halves;
+    halves.reserve(channels.size());
+    std::map<std::string, std::pair<Imf::PixelType, const void*>> byName;
+    for (const auto& [name, type] : channels) {
+        h.channels().insert(name, Imf::Channel(type));
+        auto& v = data.emplace_back(size_t(W) * size_t(H));
+        for (size_t i = 0; i < v.size(); ++i) {
+            float f = float(i % size_t(W)) * 0.5f + float(i / size_t(W));
+            uint32_t bits;
+            std::memcpy(&bits, &f, 4);
+            v[i] = noise ? rng() : bits;
+            if (type == Imf::HALF) v[i] = noise ? (v[i] & 0xffff) : Imath::half(f).bits();
+        }
+        if (type == Imf::HALF) {
+            halves.emplace_back(v.begin(), v.end());
+            byName[name] = {type, halves.back().data()};
+        } else {
+            byName[name] = {type, v.data()};
+        }
+    }
+    for (auto it = h.channels().begin(); it != h.channels().end(); ++it)
+        planes.push_back(byName[it.name()].second);
+    writeZipScanlines(path, h, planes, threads, level);
+    if (noise) {  // random bits do not deflate: every chunk is stored as it is
+        size_t raw = 0;
+        for (const auto& [name, type] : channels)
+            raw += size_t(W) * size_t(H) * (type == Imf::HALF ? 2 : 4);
+        EXPECT_GT(fs::file_size(path), raw);
+    }
+
+    Imf::InputFile in(path.c_str());
+    EXPECT_EQ(in.header().compression(), c);
+    Imf::FrameBuffer fb;
+    std::vector<std::vector<uint32_t>> back(channels.size(),
+                                            std::vector<uint32_t>(size_t(W) * size_t(H)));
+    std::vector<std::vector<uint16_t>> backHalf(channels.size(),
+                                                std::vector<uint16_t>(size_t(W) * size_t(H)));
+    for (size_t k = 0; k < channels.size(); ++k) {
+        const auto& [name, type] = channels[k];
+        char* base = type == Imf::HALF ? reinterpret_cast<char*>(backHalf[k].data())
+                                       : reinterpret_cast<char*>(back[k].data());
+        const size_t e = type == Imf::HALF ? 2 : 4;
+        fb.insert(name, Imf::Slice(type, base, e, e * size_t(W)));
+    }
+    in.setFrameBuffer(fb);
+    in.readPixels(0, H - 1);
+    for (size_t k = 0; k < channels.size(); ++k) {
+        size_t diff = 0;
+        for (size_t i = 0; i < data[k].size(); ++i) {
+            const uint32_t got = channels[k].second == Imf::HALF ? backHalf[k][i] : back[k][i];
+            diff += got != data[k][i];
+        }
+        EXPECT_EQ(diff, 0u) << channels[k].first << " " << W << "x" << H << " compression "
+                            << int(c) << " level " << level << (noise ? " noise" : "");
+    }
+}
+
+TEST(ZipWriter, OpenExrReadsBackEveryValue) {
+    TempDir dir("zipwrite");
+    const std::string path = (dir.path / "w.exr").string();
+    const std::vector<std::pair<std::string, Imf::PixelType>> rgba = {
+        {"R", Imf::HALF}, {"G", Imf::HALF}, {"B", Imf::HALF}, {"A", Imf::HALF}};
+    const std::vector<std::pair<std::string, Imf::PixelType>> mixed = {
+        {"id", Imf::FLOAT}, {"Z", Imf::FLOAT}, {"Y", Imf::HALF}};
+    for (Imf::Compression c : {Imf::ZIP_COMPRESSION, Imf::ZIPS_COMPRESSION})
+        for (bool noise : {false, true})
+            for (auto [W, H] : {std::pair{1, 1}, std::pair{37, 35}, std::pair{320, 40}}) {
+                roundTrip(path, W, H, c, 2, 4, rgba, noise);
+                roundTrip(path, W, H, c, 3, 1, mixed, noise);
+            }
+    roundTrip(path, 64, 48, Imf::ZIP_COMPRESSION, 1, 12, rgba, false);
+}
+
+TEST(ZipWriter, OutputDoesNotDependOnTheThreadCountAndItsOwnReaderAgrees) {
+    TempDir dir("zipwrite2");
+    Imf::Header h(123, 77);
+    h.compression() = Imf::ZIP_COMPRESSION;
+    h.channels().insert("B", Imf::Channel(Imf::HALF));
+    h.channels().insert("G", Imf::Channel(Imf::HALF));
+    std::vector<uint16_t> b(123 * 77), g(123 * 77);
+    for (size_t i = 0; i < b.size(); ++i) {
+        b[i] = Imath::half(float(i % 123) * 0.1f).bits();
+        g[i] = Imath::half(1.f / float(1 + i)).bits();
+    }
+    std::string bytes[2];
+    int k = 0;
+    for (int threads : {1, 4}) {
+        const std::string path = (dir.path / ("t" + std::to_string(threads) + ".exr")).string();
+        writeZipScanlines(path, h, {b.data(), g.data()}, threads, 4);
+        std::ifstream f(path, std::ios::binary);
+        bytes[k++].assign(std::istreambuf_iterator<char>(f), {});
+    }
+    EXPECT_EQ(bytes[0], bytes[1]) << "the file's bytes are those of one thread";
+    const std::string path = (dir.path / "t1.exr").string();
+    ExrInput in(path, int64_t(1) << 27);
+    ASSERT_NE(in.zip(), nullptr);
+    std::vector<float> fb(123 * 77), fg(123 * 77);
+    std::string why;
+    ASSERT_TRUE(in.zip()->decode({0, 0, 122, 76}, 123, {{"B", fb.data()}, {"G", fg.data()}},
+                                 {0.f, 0.f}, 2, &why))
+        << why;
+    auto widen = [](uint16_t bits) {
+        Imath::half v;
+        v.setBits(bits);
+        return float(v);
+    };
+    for (size_t i = 0; i < b.size(); ++i) {
+        ASSERT_EQ(fb[i], widen(b[i])) << i;
+        ASSERT_EQ(fg[i], widen(g[i])) << i;
+    }
 }
 
 }  // namespace
