@@ -1,5 +1,6 @@
 #include "kestrel/Scratch.h"
 
+#include <algorithm>
 #include <mutex>
 
 #include "kestrel/Image.h"
@@ -12,8 +13,11 @@ namespace {
 /// sized by the largest count times the largest size would hold memory nobody leases (8 MB at
 /// 1080p with two threads).
 struct PlaneSet {
-    std::vector<PlaneStorage> planes;
-    std::vector<size_t> pixels;  // of each plane
+    struct Plane {
+        PlaneStorage storage;
+        size_t pixels = 0;  // what storage holds (0: nothing)
+    };
+    std::vector<Plane> planes;
     bool inUse = false;
 };
 struct Pool {
@@ -42,20 +46,19 @@ ScratchPool::Lease ScratchPool::acquire(size_t count, size_t pixels) {
     while (k < p.sets.size() && p.sets[k].inUse) ++k;
     if (k == p.sets.size()) p.sets.emplace_back();
     PlaneSet& set = p.sets[k];
-    if (set.planes.size() < count) {
-        set.planes.resize(count);
-        set.pixels.resize(count, 0);
-    }
+    if (set.planes.size() < count) set.planes.resize(count);
     std::vector<float*> ptrs;
     for (size_t i = 0; i < count; ++i) {
-        if (set.pixels[i] < pixels) {  // grow this plane (contents are scratch)
-            set.planes[i].reset();
-            set.planes[i] = allocatePlane(pixels);
-            set.pixels[i] = pixels;
+        PlaneSet::Plane& plane = set.planes[i];
+        if (!plane.storage || plane.pixels < pixels) {  // grow this plane (contents are scratch)
+            plane.storage.reset();
+            plane.pixels = 0;
+            plane.storage = allocatePlane(std::max<size_t>(pixels, 1));
+            plane.pixels = std::max<size_t>(pixels, 1);
         }
-        ptrs.push_back(set.planes[i].get());
+        ptrs.push_back(plane.storage.get());
     }
-    set.inUse = true;  // after the allocations: one that throws leaves the set free
+    set.inUse = true;  // after the allocations: one that throws leaves the set free and whole
     return Lease(k, std::move(ptrs));
 }
 
@@ -64,7 +67,7 @@ size_t ScratchPool::bytes() {
     std::lock_guard lock(p.mutex);
     size_t total = 0;
     for (const auto& s : p.sets)
-        for (size_t n : s.pixels) total += n * sizeof(float);
+        for (const auto& plane : s.planes) total += plane.pixels * sizeof(float);
     return total;
 }
 

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <limits>
 #include <string_view>
 #include <vector>
 
@@ -23,6 +24,11 @@ Box toBox(const Imath::Box2i& b) {
 
 void checkWindow(const char* what, const Box& b, int64_t maxPixels) {
     if (b.width() <= 0 || b.height() <= 0) throw Error(std::string("empty or inverted ") + what);
+    // Coordinates are ints: a window spanning more than INT_MAX pixels would overflow the
+    // decoders' int offsets (found in review; only a maxPixels above 2^31 lets one through).
+    if (b.width() > std::numeric_limits<int>::max() || b.height() > std::numeric_limits<int>::max())
+        throw Error(std::string(what) + " " + std::to_string(b.width()) + "x" +
+                    std::to_string(b.height()) + " spans more than 2^31 - 1 pixels");
     // Each factor fits in 33 bits but their product may not fit in int64 (found by exr_fuzzer):
     // compare by division (height > 0 here).
     if (b.width() > maxPixels / b.height())

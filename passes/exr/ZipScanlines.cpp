@@ -125,9 +125,18 @@ void undoPredictor(unsigned char* t, size_t n) {
 
 }  // namespace
 
+#if defined(__SANITIZE_ADDRESS__)
+#define KESTREL_EXACT_BUFFERS 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define KESTREL_EXACT_BUFFERS 1
+#endif
+#endif
+
 /// Bytes mapped from the system and unmapped when freed: a chunk of a 1080p frame is megabytes,
 /// which malloc would keep in the (per-thread) arena of a decoding thread after the frame, as
-/// resident memory nobody uses.
+/// resident memory nobody uses. Under AddressSanitizer, heap buffers of exactly the size asked
+/// instead, so that a read or write past a chunk's bytes is reported.
 class MappedBytes {
 public:
     MappedBytes() = default;
@@ -136,6 +145,10 @@ public:
     MappedBytes& operator=(const MappedBytes&) = delete;
     /// At least n bytes (contents not kept).
     unsigned char* reserve(size_t n) {
+#if defined(KESTREL_EXACT_BUFFERS)
+        exact_.reset(new unsigned char[n]);
+        return exact_.get();
+#endif
         if (n <= size_) return p_;
         release();
         void* m = ::mmap(nullptr, n, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
@@ -153,6 +166,20 @@ private:
     }
     unsigned char* p_ = nullptr;
     size_t size_ = 0;
+#if defined(KESTREL_EXACT_BUFFERS)
+    std::unique_ptr<unsigned char[]> exact_;
+#endif
+};
+
+/// A file descriptor closed at scope end.
+struct Fd {
+    int fd;
+    explicit Fd(const std::string& path) : fd(::open(path.c_str(), O_RDONLY | O_CLOEXEC)) {}
+    ~Fd() {
+        if (fd >= 0) ::close(fd);
+    }
+    Fd(const Fd&) = delete;
+    Fd& operator=(const Fd&) = delete;
 };
 
 struct ChunkBuffers {
@@ -185,14 +212,21 @@ std::unique_ptr<ZipScanlines> ZipScanlines::plan(const std::string& path, const 
         z->channels_.push_back({it.name(), ch.type, z->bytesPerLine_});
         z->bytesPerLine_ += width * uint64_t(valueBytes(ch.type));
     }
+    if (z->channels_.empty()) return nullptr;  // nothing to decode: OpenEXR says what it says
+    if (h.lineOrder() != Imf::INCREASING_Y && h.lineOrder() != Imf::DECREASING_Y) return nullptr;
+    z->decreasing_ = h.lineOrder() == Imf::DECREASING_Y;
     const uint64_t chunks = (uint64_t(z->data_.height()) + uint64_t(z->linesPerChunk_) - 1) /
                             uint64_t(z->linesPerChunk_);
     if (chunks > uint64_t(std::numeric_limits<int>::max()) / 8) return nullptr;  // OpenEXR's
     z->offsets_.resize(chunks);
-    std::vector<unsigned char> table(chunks * 8);
     in.seekg(tablePos);
-    in.read(reinterpret_cast<char*>(table.data()), int(table.size()));
-    for (uint64_t i = 0; i < chunks; ++i) z->offsets_[i] = readLE64(&table[i * 8]);
+    in.read(reinterpret_cast<char*>(z->offsets_.data()), int(chunks * 8));
+    for (uint64_t& o : z->offsets_) {
+        o = readLE64(reinterpret_cast<const unsigned char*>(&o));
+        // A zero entry marks a file whose writer stopped early: OpenEXR then rebuilds the whole
+        // table by walking the chunks, which this path does not do.
+        if (o == 0) return nullptr;
+    }
     z->tableEnd_ = tablePos + chunks * 8;
     z->fileSize_ = fileSize;
     return z;
@@ -220,13 +254,22 @@ bool ZipScanlines::decodeChunk(int fd, int chunk, const std::vector<float*>& dst
         *why = where + ": " + std::to_string(size) + " bytes of data do not fit";
         return false;
     }
+    // OpenEXR reads the chunk after the one it has just read from where that one ended, without
+    // the table, so the same pixels come out only if the table says so too: chunks stored one
+    // after another in line order, as every writer stores them.
+    const size_t after = decreasing_ ? size_t(chunk) - 1 : size_t(chunk) + 1;
+    if ((decreasing_ ? chunk > 0 : size_t(chunk) + 1 < offsets_.size()) &&
+        offsets_[after] != off + 8 + uint64_t(size)) {
+        *why = where + ": the next chunk in the file is not where the offset table puts it";
+        return false;
+    }
     unsigned char* packed = buf.packed.reserve(size_t(size));
     if (!readAt(fd, off + 8, packed, size_t(size))) {
         *why = where + ": short read";
         return false;
     }
     auto write = [&](const auto& src) {
-        const int ix0 = std::max(data_.x0, dp.x0), ix1 = std::min(data_.x1, dp.x1);
+        const int64_t ix0 = std::max(data_.x0, dp.x0), ix1 = std::min(data_.x1, dp.x1);
         const size_t count = size_t(ix1 - ix0 + 1);
         for (int l = 0; l < lines; ++l) {
             const int64_t yy = y0 + l;
@@ -236,8 +279,9 @@ bool ZipScanlines::decodeChunk(int fd, int chunk, const std::vector<float*>& dst
                 if (!dst[c]) continue;
                 const Channel& ch = channels_[c];
                 const uint64_t j =
-                    line + ch.lineOffset + uint64_t(ix0 - data_.x0) * uint64_t(valueBytes(ch.type));
-                float* row = dst[c] + size_t(yy - dp.y0) * size_t(W) + size_t(ix0 - dp.x0);
+                    line + ch.lineOffset +
+                    uint64_t(ix0 - int64_t(data_.x0)) * uint64_t(valueBytes(ch.type));
+                float* row = dst[c] + size_t(yy - dp.y0) * size_t(W) + size_t(ix0 - int64_t(dp.x0));
                 convert(src, j, ch.type, count, row);
             }
         }
@@ -279,11 +323,15 @@ bool ZipScanlines::decode(const Box& dp, int W,
     const int first = int((int64_t(iy0) - data_.y0) / linesPerChunk_);
     const int last = int((int64_t(iy1) - data_.y0) / linesPerChunk_);
 
-    const int fd = ::open(path_.c_str(), O_RDONLY | O_CLOEXEC);
-    if (fd < 0) {
-        *why = std::string("cannot open: ") + std::strerror(errno);
+    std::vector<std::thread> pool;
+    const int helpers = std::clamp(std::min(threads, last - first + 1) - 1, 0, 63);
+    pool.reserve(size_t(helpers));
+    const Fd file(path_);
+    if (file.fd < 0) {
+        *why = "cannot open: " + std::error_code(errno, std::generic_category()).message();
         return false;
     }
+    const int fd = file.fd;
     // Chunks are handed out in order from one counter; each writes its own rows, so the planes
     // do not depend on the thread count.
     std::atomic<int> next{first};
@@ -300,7 +348,10 @@ bool ZipScanlines::decode(const Box& dp, int W,
             std::string mine;
             for (int c; !failed && (c = next++) <= last;) {
                 bool raw = false;
-                if (!decodeChunk(fd, c, dst, dp, W, buf, &raw, &mine)) fail(mine);
+                if (!decodeChunk(fd, c, dst, dp, W, buf, &raw, &mine)) {
+                    fail(mine);
+                    break;
+                }
                 ++decoded;
                 stored += raw;
             }
@@ -308,17 +359,13 @@ bool ZipScanlines::decode(const Box& dp, int W,
             fail(std::string("decoding: ") + e.what());
         }
     };
-    const int helpers = std::clamp(std::min(threads, last - first + 1) - 1, 0, 63);
-    std::vector<std::thread> pool;
-    pool.reserve(size_t(helpers));
     try {
         for (int i = 0; i < helpers; ++i) pool.emplace_back(work);
-    } catch (const std::system_error&) {
+    } catch (...) {
         // no more threads: the ones started and this one share the chunks
     }
     work();
     for (auto& t : pool) t.join();
-    ::close(fd);
     if (stats) *stats = {decoded, stored};
     return !failed;
 }

@@ -55,6 +55,7 @@ private:
     std::string path_;
     Box data_{};
     int linesPerChunk_ = 1;
+    bool decreasing_ = false;  // chunks stored bottom first
     uint64_t bytesPerLine_ = 0, tableEnd_ = 0, fileSize_ = 0;
     std::vector<Channel> channels_;
     std::vector<uint64_t> offsets_;

@@ -9,6 +9,7 @@
 #include <atomic>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <new>
@@ -77,8 +78,11 @@ void writeZipScanlines(const std::string& path, const Imf::Header& header,
     }
     if (chans.size() != planes.size())
         throw Error("writeZipScanlines: more planes than the header's channels");
+    if (chans.empty()) throw Error("writeZipScanlines: the header has no channels");
     const size_t lines = compression == Imf::ZIP_COMPRESSION ? 16 : 1;
     const size_t chunks = (H + lines - 1) / lines;
+    if (lines * bytesPerLine > size_t(std::numeric_limits<int32_t>::max()))
+        throw Error("writeZipScanlines: a chunk would exceed 2 GB");
 
     // Encode (ImfZip.cpp's compress, with libdeflate): the chunk's scan lines (each channel's
     // values in turn), its bytes split into even and odd halves, each byte stored as its
@@ -137,9 +141,10 @@ void writeZipScanlines(const std::string& path, const Imf::Header& header,
     const int helpers =
         std::clamp(int(std::min<size_t>(size_t(std::max(threads, 1)), chunks)) - 1, 0, 63);
     std::vector<std::thread> pool;
+    pool.reserve(size_t(helpers));
     try {
         for (int i = 0; i < helpers; ++i) pool.emplace_back(work);
-    } catch (const std::system_error&) {
+    } catch (...) {
         // no more threads: the ones started and this one share the chunks
     }
     work();
