@@ -234,24 +234,25 @@ std::unique_ptr<ZipScanlines> ZipScanlines::plan(const std::string& path, const 
 
 bool ZipScanlines::decodeChunk(int fd, int chunk, const std::vector<float*>& dst, const Box& dp,
                                int W, ChunkBuffers& buf, bool* stored, std::string* why) const {
-    const std::string where = "chunk " + std::to_string(chunk);
+    auto where = [chunk] { return "chunk " + std::to_string(chunk); };  // on failure only
     const uint64_t off = offsets_[size_t(chunk)];
     unsigned char head[8];
     if (off < tableEnd_ || off > fileSize_ - std::min<uint64_t>(fileSize_, 8) ||
         !readAt(fd, off, head, 8)) {
-        *why = where + ": offset " + std::to_string(off) + " outside the file";
+        *why = where() + ": offset " + std::to_string(off) + " outside the file";
         return false;
     }
     const int32_t y = readLE32(head), size = readLE32(head + 4);
     const int64_t y0 = int64_t(data_.y0) + int64_t(chunk) * linesPerChunk_;
     if (y != y0) {
-        *why = where + ": starts at line " + std::to_string(y) + ", expected " + std::to_string(y0);
+        *why =
+            where() + ": starts at line " + std::to_string(y) + ", expected " + std::to_string(y0);
         return false;
     }
     const int lines = int(std::min<int64_t>(linesPerChunk_, int64_t(data_.y1) - y0 + 1));
     const uint64_t unpacked = uint64_t(lines) * bytesPerLine_;
     if (size <= 0 || uint64_t(size) > unpacked || uint64_t(size) > fileSize_ - off - 8) {
-        *why = where + ": " + std::to_string(size) + " bytes of data do not fit";
+        *why = where() + ": " + std::to_string(size) + " bytes of data do not fit";
         return false;
     }
     // OpenEXR reads the chunk after the one it has just read from where that one ended, without
@@ -260,12 +261,12 @@ bool ZipScanlines::decodeChunk(int fd, int chunk, const std::vector<float*>& dst
     const size_t after = decreasing_ ? size_t(chunk) - 1 : size_t(chunk) + 1;
     if ((decreasing_ ? chunk > 0 : size_t(chunk) + 1 < offsets_.size()) &&
         offsets_[after] != off + 8 + uint64_t(size)) {
-        *why = where + ": the next chunk in the file is not where the offset table puts it";
+        *why = where() + ": the next chunk in the file is not where the offset table puts it";
         return false;
     }
     unsigned char* packed = buf.packed.reserve(size_t(size));
     if (!readAt(fd, off + 8, packed, size_t(size))) {
-        *why = where + ": short read";
+        *why = where() + ": short read";
         return false;
     }
     auto write = [&](const auto& src) {
@@ -296,7 +297,7 @@ bool ZipScanlines::decodeChunk(int fd, int chunk, const std::vector<float*>& dst
     if (libdeflate_zlib_decompress(buf.inflater, packed, size_t(size), t, size_t(unpacked), &got) !=
             LIBDEFLATE_SUCCESS ||
         got != unpacked) {
-        *why = where + ": corrupt deflate data";
+        *why = where() + ": corrupt deflate data";
         return false;
     }
     undoPredictor(t, size_t(unpacked));

@@ -114,24 +114,16 @@ void writeZipScanlines(const std::string& path, const Imf::Header& header,
                     hi[j] = e.raw[2 * j + 1];
                 }
                 if (n % 2) lo[n / 2] = e.raw[n - 1];
-                // The predictor, into `raw` (no longer needed; the delta needs the byte before).
-                unsigned char* d = e.raw.data();
-                d[0] = e.split[0];
-                for (size_t j = 1; j < n; ++j)
-                    d[j] = static_cast<unsigned char>(e.split[j] - e.split[j - 1] + 128);
-                const size_t size = libdeflate_zlib_compress(e.deflater, d, n, e.out.data(), n - 1);
-                auto& dst = encoded[i];
-                if (size > 0) {
-                    dst.assign(e.out.begin(), e.out.begin() + ptrdiff_t(size));
-                } else {  // not smaller: the scan lines as they are
-                    dst.resize(n);
-                    unsigned char* p = dst.data();
-                    for (size_t l = 0; l < rows; ++l)
-                        for (const Chan& c : chans) {
-                            std::memcpy(p, c.data + (i * lines + l) * c.rowBytes, c.rowBytes);
-                            p += c.rowBytes;
-                        }
-                }
+                // The predictor in place, from the end (each delta needs the byte before it
+                // as it was); `raw` stays for a chunk deflate does not shrink.
+                for (size_t j = n - 1; j > 0; --j)
+                    e.split[j] = static_cast<unsigned char>(e.split[j] - e.split[j - 1] + 128);
+                const size_t size =
+                    libdeflate_zlib_compress(e.deflater, e.split.data(), n, e.out.data(), n - 1);
+                if (size > 0)
+                    encoded[i].assign(e.out.begin(), e.out.begin() + ptrdiff_t(size));
+                else  // not smaller: the scan lines as they are
+                    encoded[i] = e.raw;
             }
         } catch (const std::exception& ex) {
             std::lock_guard<std::mutex> g(failureLock);

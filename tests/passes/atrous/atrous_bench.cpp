@@ -23,21 +23,27 @@ const Inputs& inputs() {
     return in;
 }
 
-// state.range(0): step; state.range(1): threads.
-void BM_ATrous(benchmark::State& state) {
-    const Inputs& in = inputs();
-    auto h = PassHarness::make<ATrousPass>({kW, kH}, {{"step", int64_t(state.range(0))}},
-                                           int(state.range(1)));
-    h.bind("color", in.g.color);
-    h.bind("variance", in.var);
-    h.bind("depth", in.g.depth);
-    h.bind("normal", in.g.normal);
-    h.bind("objectId", in.g.ids);
+/// Binds `g` and `var` to an A-Trous pass of `step` on `threads` threads and times its runs.
+void runATrous(benchmark::State& state, const RandomGBuffer& g, const Image& var, int step,
+               int threads) {
+    const Extent size{g.color.width(), g.color.height()};
+    auto h = PassHarness::make<ATrousPass>(size, {{"step", int64_t(step)}}, threads);
+    h.bind("color", g.color);
+    h.bind("variance", var);
+    h.bind("depth", g.depth);
+    h.bind("normal", g.normal);
+    h.bind("objectId", g.ids);
     h.run();  // allocate outputs and scratch
     for (auto _ : state) {
         h.run();
         benchmark::DoNotOptimize(h.out("color").channel(0)[0]);
     }
+}
+
+// state.range(0): step; state.range(1): threads.
+void BM_ATrous(benchmark::State& state) {
+    const Inputs& in = inputs();
+    runATrous(state, in.g, in.var, int(state.range(0)), int(state.range(1)));
     const double px = double(kW) * double(kH);
     state.counters["MP/s"] =
         benchmark::Counter(px * 1e-6 * double(state.iterations()), benchmark::Counter::kIsRate);
@@ -56,19 +62,9 @@ BENCHMARK(BM_ATrous)
 // to 1920x1080 is what the memory hierarchy costs (docs/benchmarks.md, roofline notes).
 void BM_ATrousSize(benchmark::State& state) {
     const int w = int(state.range(0)), ht = int(state.range(1));
-    RandomGBuffer g = randomGBuffer(w, ht, 1);
-    Image var = scalar(w, ht, [](int x, int y) { return 0.01f + 0.1f * hash01(x, y, 9); });
-    auto h = PassHarness::make<ATrousPass>({w, ht}, {{"step", int64_t(state.range(2))}}, 1);
-    h.bind("color", g.color);
-    h.bind("variance", var);
-    h.bind("depth", g.depth);
-    h.bind("normal", g.normal);
-    h.bind("objectId", g.ids);
-    h.run();
-    for (auto _ : state) {
-        h.run();
-        benchmark::DoNotOptimize(h.out("color").channel(0)[0]);
-    }
+    const RandomGBuffer g = randomGBuffer(w, ht, 1);
+    const Image var = scalar(w, ht, [](int x, int y) { return 0.01f + 0.1f * hash01(x, y, 9); });
+    runATrous(state, g, var, int(state.range(2)), 1);
     // kInvert of a rate: seconds per pixel, scaled to nanoseconds.
     state.counters["ns/px"] =
         benchmark::Counter(double(w) * double(ht) * double(state.iterations()) * 1e-9,
