@@ -162,6 +162,21 @@ struct Builder {
         }
         r.why = s;
     }
+    /// The first of `layers` the file has (its index), else absent naming the first layer and
+    /// Blender's UI path that enables it ("View Layer > Passes > <uiPath>"); -1 when absent.
+    int setFirst(const std::string& output, const std::vector<std::string>& layers,
+                 const std::string& uiPath) {
+        for (size_t i = 0; i < layers.size(); ++i)
+            if (resolveGroup(files, "", layers[i], width(*plan.find(output)))) {
+                set(output, {{layers[i]}});
+                return int(i);
+            }
+        std::string missing = "channel " + groupHint(layers.front(), width(*plan.find(output)));
+        for (size_t i = 1; i < layers.size(); ++i) missing += (i == 1 ? " (nor " : ", ") + layers[i];
+        if (layers.size() > 1) missing += ")";
+        describe(*plan.find(output), missing + ": enable View Layer > Passes > " + uiPath);
+        return -1;
+    }
     void absent(const std::string& output, const std::string& missing) {
         describe(*plan.find(output), missing);
     }
@@ -202,7 +217,9 @@ Plan planBlender(const ChannelSets& files, const std::string& L) {
     // Light passes are divided by their colour pass (data/README.md):
     // Combined = (DiffDir + DiffInd)*DiffCol + (GlossDir + GlossInd)*GlossCol + Emit + Env.
     b.set("color", {{P("Combined")}});
-    b.set("albedo", {{P("DiffCol")}});
+    // What a user who ticks "Denoising Data" has stands in for a missing G-buffer pass (Cycles'
+    // denoiser features: data/README.md); the proper passes win where both exist.
+    b.setFirst("albedo", {P("DiffCol"), P("Denoising Albedo")}, "Light > Diffuse > Color");
     std::vector<std::vector<std::string>> emission;
     if (has("Emit")) emission.push_back({P("Emit")});
     if (has("Env")) emission.push_back({P("Env")});
@@ -223,8 +240,12 @@ Plan planBlender(const ChannelSets& files, const std::string& L) {
     b.set("diffuseAlbedo", {{P("DiffCol")}});
     b.set("specular", {{P("GlossDir"), P("GlossCol")}, {P("GlossInd"), P("GlossCol")}});
     b.set("specularAlbedo", {{P("GlossCol")}});
-    b.set("normal", {{P("Normal")}});
-    b.set("depth", {{P("Depth")}});  // planar depth, 1e10 on background already
+    if (b.setFirst("normal", {P("Normal"), P("Denoising Normal")}, "Data > Normal") == 1)
+        b.plan.find("normal")->cameraSpace = true;  // Cycles writes its features in camera space
+    // Planar depth, 1e10 on the background already; else the denoiser's ray-path length, 0 on
+    // the background: a depth guide of its own kind (not planar), consistent frame to frame.
+    if (b.setFirst("depth", {P("Depth"), P("Denoising Depth")}, "Data > Z") == 1)
+        b.plan.find("depth")->zeroIsBackground = true;
     b.set("position", {{P("Position")}});
     b.set("motion", {{P("Vector")}});
     b.plan.find("motion")->scale[1] = -1.f;  // Blender's Vector y points up the image
@@ -271,6 +292,7 @@ void applyChannelOverrides(Plan& plan, const std::string& spec, const ChannelSet
         int n = r->format == Format::Int32 ? 1 : channelCount(r->format);
         r->terms.clear();
         r->backgroundMask.reset();
+        r->zeroIsBackground = r->cameraSpace = false;
         r->scale[0] = r->scale[1] = r->scale[2] = r->scale[3] = 1.f;
         if (expr.empty()) {
             r->absent = true;

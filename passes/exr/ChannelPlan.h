@@ -39,6 +39,8 @@ struct Recipe {
     float fill = 0.f;               ///< where the file has no pixel (outside the data window)
     std::optional<ChannelRef> backgroundMask;  ///< GAMES202 depth: where this < -0.5, depth = 1e10
     IdRule idRule = IdRule::Round;             ///< Int32 outputs
+    bool zeroIsBackground = false;  ///< depth: values <= 0 (or NaN) are background (1e10)
+    bool cameraSpace = false;       ///< normal: camera space, rotated to world by the camera
     bool absent = false;
     std::string why;  ///< absent: which channel is missing; present: what is read (for notes)
 

@@ -2,6 +2,7 @@
 
 #include <OpenEXR/ImfAttribute.h>
 #include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFloatAttribute.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfMatrixAttribute.h>
 #include <OpenEXR/ImfStringAttribute.h>
@@ -44,6 +45,19 @@ float* asFloats(const ImageView& v, int c) {
 
 void fillPlane(float* p, size_t n, float value) {
     std::fill(p, p + n, value);
+}
+
+/// Camera-space directions to world space: by the transpose of the view's rotation (orthonormal
+/// for Blender's cameras). The background's zero vectors stay zero.
+void rotateToWorld(const Mat4& worldToCamera, const ImageView& v, size_t n) {
+    const auto& m = worldToCamera.m;
+    float *x = asFloats(v, 0), *y = asFloats(v, 1), *z = asFloats(v, 2);
+    for (size_t i = 0; i < n; ++i) {
+        const float cx = x[i], cy = y[i], cz = z[i];
+        x[i] = m[0][0] * cx + m[1][0] * cy + m[2][0] * cz;
+        y[i] = m[0][1] * cx + m[1][1] * cy + m[2][1] * cz;
+        z[i] = m[0][2] * cx + m[1][2] * cy + m[2][2] * cz;
+    }
 }
 
 /// Object ids arrive as floats; stored in place as int32 (the plane's own memory).
@@ -357,6 +371,9 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
                 note("cameras from " + cam.string());
             } else {
                 note("no camera.json beside the frames or one folder up: no camera matrices");
+                if (plan_.find("normal")->cameraSpace)
+                    note("normal: Denoising Normal stays in camera space (no camera to rotate it "
+                         "by)");
             }
         } else {
             plan_ = planCanonical(sets);
@@ -419,6 +436,8 @@ void ExrLoader::fillScene(int64_t frame, SceneData& scene) {
         }
         if (auto* a = h.findTypedAttribute<Imf::M44fAttribute>("kestrel.worldToCamera"))
             scene.worldToCamera = toMat4(a->value());
+        if (auto* a = h.findTypedAttribute<Imf::FloatAttribute>("kestrel.pixelFilterWidth"))
+            scene.pixelFilterWidth = std::isfinite(a->value()) ? std::max(0.f, a->value()) : 0.f;
         const std::string prefix = "kestrel.objectToWorld.";
         for (auto it = h.begin(); it != h.end(); ++it) {
             std::string name = it.name();
@@ -608,6 +627,13 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
             for (size_t i = 0; i < N; ++i)
                 if (!(m[i] > -0.5f)) o[i] = kBackgroundDepth;
         }
+        if (r->zeroIsBackground) {
+            float* o = asFloats(out, 0);
+            for (size_t i = 0; i < N; ++i)
+                if (!(o[i] > 0.f)) o[i] = kBackgroundDepth;
+        }
+        if (r->cameraSpace && ctx.scene && ctx.scene->hasCamera)
+            rotateToWorld(ctx.scene->worldToCamera, out, N);
     }
     for (const Recipe* r : active)
         if (r->format == Format::Int32)

@@ -1,5 +1,6 @@
 #include "SceneMatrices.h"
 
+#include <algorithm>
 #include <cstring>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -33,6 +34,28 @@ Mat4 toMat(const nlohmann::json& j) {
 }
 }  // namespace
 
+namespace {
+/// render_settings.filter_width_px, else the width in its pixel_filter text ("BLACKMAN_HARRIS,
+/// width 1.5 px"); 0 when the file does not say.
+float pixelFilterWidth(const nlohmann::json& j) {
+    if (!j.contains("render_settings") || !j["render_settings"].is_object()) return 0.f;
+    const auto& r = j["render_settings"];
+    if (r.contains("filter_width_px") && r["filter_width_px"].is_number())
+        return std::max(0.f, r["filter_width_px"].get<float>());
+    if (r.contains("pixel_filter") && r["pixel_filter"].is_string()) {
+        const std::string t = r["pixel_filter"].get<std::string>();
+        const auto at = t.find("width ");
+        if (at != std::string::npos) {
+            try {
+                return std::max(0.f, std::stof(t.substr(at + 6)));
+            } catch (const std::exception&) {
+            }
+        }
+    }
+    return 0.f;
+}
+}  // namespace
+
 BlenderCameras::BlenderCameras(const fs::path& file) : path_(file) {
     std::ifstream in(file);
     if (!in) throw Error("cannot open camera file " + file.string());
@@ -44,9 +67,11 @@ BlenderCameras::BlenderCameras(const fs::path& file) : path_(file) {
         if (j.contains("object_pass_index"))
             for (const auto& [name, id] : j["object_pass_index"].items())
                 ids[name] = id.get<int32_t>();
+        const float filterWidth = pixelFilterWidth(j);
         for (const auto& f : j.at("frames")) {
             SceneData s;
             s.hasCamera = true;
+            s.pixelFilterWidth = filterWidth;
             s.worldToCamera = toMat(f.at("view"));
             s.worldToPixel = viewport * toMat(f.at("view_projection"));
             if (f.contains("objects"))

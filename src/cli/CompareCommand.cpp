@@ -1,6 +1,7 @@
 // `kestrel compare OUT REF`: error metrics of an output sequence against a reference. The work is
 // in kestrel_eval (eval/Compare.h); this file only maps options and exit codes.
 #include <eval/Compare.h>
+#include <eval/Regions.h>
 #include <kestrel/Error.h>
 #include <kestrel/FramePattern.h>
 
@@ -8,12 +9,13 @@
 #include <memory>
 
 #include "Commands.h"
+#include "Common.h"
 
 namespace kestrel::cli {
 namespace {
 
 struct CompareArgs {
-    std::string out, ref, frames, toneMap = "reinhard", layer, refLayer;
+    std::string out, ref, frames, toneMap = "reinhard", layer, refLayer, regions;
     bool json = false;
 };
 
@@ -39,10 +41,27 @@ int runCompare(const CompareArgs& a) {
                       << m.nonFiniteOutput << " output and " << m.nonFiniteReference
                       << " reference pixels hold NaN/Inf (counted; NaN -> 0, Inf -> +-FLT_MAX)\n";
     }
-    if (a.json)
-        std::cout << eval::toJson(r).dump(2) << "\n";
-    else
+    std::optional<eval::RegionStats> regions;
+    if (!a.regions.empty()) {
+        std::vector<int64_t> frames;
+        for (const auto& f : r.frames)
+            if (f.frame) frames.push_back(*f.frame);
+        if (frames.empty()) {
+            std::cerr << "error: --regions needs frame patterns (OUTPUT and REFERENCE with #)\n";
+            return 2;
+        }
+        auto plugins = loadPlugins();
+        regions = eval::compareRegions(plugins->registry, a.out, a.ref, a.regions, frames, o.toneMap);
+    }
+    if (a.json) {
+        nlohmann::json j = eval::toJson(r);
+        if (regions) j["regions"] = eval::regionsToJson(*regions);
+        std::cout << j.dump(2) << "\n";
+    } else {
         std::cout << eval::formatTable(r);
+        if (regions) std::cout << "\nper region (PSNR over the frames; regions from " << a.regions
+                               << "):\n" << eval::formatRegionTable(*regions);
+    }
     return 0;
 }
 
@@ -71,6 +90,10 @@ void addCompareCommand(CLI::App& app, Action& action) {
                     "RGB layer of the output files (default: plain R,G,B, else *.Combined, else "
                     "the only RGB layer)");
     cmd->add_option("--ref-layer", args->refLayer, "RGB layer of the reference files");
+    cmd->add_option("--regions", args->regions,
+                    "The run's input frames (as run --input): also report the error per region "
+                    "(background, emissive, glossy, textured, disoccluded; from its G-buffer) "
+                    "for the output and for the 1-spp input");
     cmd->callback([&action, args] { action = [args] { return runCompare(*args); }; });
 }
 

@@ -312,7 +312,10 @@ TEST(ExrLoaderRobustness, AbsentChannelNamesChannelAndLayout) {
     h.pass().resolve(rc);
     ASSERT_EQ(rc.absent.count("direct"), 1u);
     EXPECT_EQ(rc.absent["direct"], "layout blender has no channel RenderLayer.GlossCol.R/G/B");
-    EXPECT_EQ(rc.absent["depth"], "layout blender has no channel RenderLayer.Depth.Z");
+    // Named as Blender's UI names it, with the denoiser feature that would stand in for it.
+    EXPECT_EQ(rc.absent["depth"],
+              "layout blender has no channel RenderLayer.Depth.Z (nor RenderLayer.Denoising "
+              "Depth): enable View Layer > Passes > Data > Z");
     EXPECT_EQ(rc.absent.count("diffuse"), 0u);
     EXPECT_EQ(rc.absent.count("motion"), 0u);
     EXPECT_EQ(rc.absent.count("emission"), 1u);

@@ -1,0 +1,7 @@
+#include <kestrel/Plugin.h>
+
+#include "AlbedoResolvePass.h"
+
+KESTREL_PLUGIN(r) {
+    r.add<AlbedoResolvePass>();
+}

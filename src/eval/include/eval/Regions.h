@@ -1,0 +1,86 @@
+#pragma once
+// Error per region of the frame. A filter that improves the frame on average can still ruin a
+// region (a black sky, a smeared emitter): each region's error is measured for the output and for
+// the 1-spp input it was made from, so "no region worse than the input" is a number, not a look.
+//
+// Regions come from the G-buffer as the ExrLoader reads it (any layout it reads), never from the
+// reference. A pixel may be in several regions; "all" holds every pixel.
+//   background   depth >= 1e9 (Conventions.h: 1e10), else objectId -1 (sky, environment)
+//   emissive     not background, emission luminance > 1e-3
+//   glossy       not background, specular albedo brighter than the diffuse albedo (metal, mirror)
+//   textured     not background nor emissive, albedo luminance varies over the 3x3 neighbours on
+//                the same object by more than 25% of its maximum
+//   disoccluded  not background, no 2x2 tap of its motion-vector footprint in the previous frame
+//                is on screen with the same object id and a depth within 10% (needs motion and
+//                the previous frame; never on a sequence's first frame)
+#include <kestrel/Image.h>
+#include <kestrel/Registry.h>
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "eval/Metrics.h"
+
+namespace kestrel::eval {
+
+enum Region : int { kAll, kBackground, kEmissive, kGlossy, kTextured, kDisoccluded, kRegionCount };
+const char* regionName(int region);
+
+/// The loader outputs regions are made from, as planar floats (empty where the scene lacks it).
+struct GBuffer {
+    int width = 0, height = 0;
+    std::vector<float> depth, emissionLum, albedoLum, specularLum, motionX, motionY;
+    std::vector<int32_t> objectId;
+    Image color;  ///< the 1-spp input colour (Float3)
+};
+
+/// Per-pixel membership: masks[region][pixel].
+using RegionMasks = std::array<std::vector<uint8_t>, kRegionCount>;
+/// `previous` is the G-buffer of the frame before (nullptr on the first: nothing disoccluded).
+RegionMasks classifyRegions(const GBuffer& current, const GBuffer* previous);
+
+/// Reads G-buffers frame by frame through the ExrLoader plugin (so every layout it reads works).
+class GBufferReader {
+public:
+    /// `inputPattern` as `kestrel run --input`; `firstFrame` probes the layout. Throws Error.
+    GBufferReader(const Registry& registry, const std::string& inputPattern, int64_t firstFrame);
+    ~GBufferReader();
+    GBuffer read(int64_t frame);
+    /// Which outputs the scene provides ("depth", "objectId", ...), for reports.
+    const std::vector<std::string>& provided() const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+/// Sums of squared display-value errors per region, over frames.
+struct RegionStats {
+    std::array<double, kRegionCount> outSse{}, inSse{};
+    std::array<uint64_t, kRegionCount> samples{};  ///< pixel-channels
+    std::array<uint64_t, kRegionCount> framesWith{};
+
+    /// Adds one frame: output, reference and input are linear RGB, tone-mapped here.
+    void add(const ImageView& out, const ImageView& ref, const ImageView& input,
+             const RegionMasks& masks, ToneMap toneMap = ToneMap::Reinhard);
+    bool has(int region) const { return samples[size_t(region)] > 0; }
+    double outPsnr(int region) const;
+    double inPsnr(int region) const;
+    /// Output MSE over input MSE (< 1: the filter helped there).
+    double ratio(int region) const;
+};
+
+/// Compares an output sequence with its reference per region, taking the G-buffer and the 1-spp
+/// input from `inputPattern`. Throws Error / FrameError naming the file.
+RegionStats compareRegions(const Registry& registry, const std::string& outPattern,
+                           const std::string& refPattern, const std::string& inputPattern,
+                           const std::vector<int64_t>& frames, ToneMap toneMap = ToneMap::Reinhard);
+
+std::string formatRegionTable(const RegionStats& stats);
+nlohmann::json regionsToJson(const RegionStats& stats);
+
+}  // namespace kestrel::eval
