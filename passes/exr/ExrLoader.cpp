@@ -47,13 +47,16 @@ void fillPlane(float* p, size_t n, float value) {
     std::fill(p, p + n, value);
 }
 
-/// Camera-space directions to world space: by the transpose of the view's rotation (orthonormal
-/// for Blender's cameras). The background's zero vectors stay zero.
+/// Cycles' camera-space directions (x right, y up, z forward: measured on blender-street, where
+/// the ground's Denoising Normal is (0, 0.989, 0.151) under a view whose up row is
+/// (.., 0.989, -0.151)) to world space: z flipped to the OpenGL view's (looking down -z), then
+/// by the transpose of the view's rotation (orthonormal for Blender's cameras). The
+/// background's zero vectors stay zero.
 void rotateToWorld(const Mat4& worldToCamera, const ImageView& v, size_t n) {
     const auto& m = worldToCamera.m;
     float *x = asFloats(v, 0), *y = asFloats(v, 1), *z = asFloats(v, 2);
     for (size_t i = 0; i < n; ++i) {
-        const float cx = x[i], cy = y[i], cz = z[i];
+        const float cx = x[i], cy = y[i], cz = -z[i];
         x[i] = m[0][0] * cx + m[1][0] * cy + m[2][0] * cz;
         y[i] = m[0][1] * cx + m[1][1] * cy + m[2][1] * cz;
         z[i] = m[0][2] * cx + m[1][2] * cy + m[2][2] * cz;

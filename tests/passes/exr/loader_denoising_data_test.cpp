@@ -1,0 +1,109 @@
+// A render set up the usual way for denoising (Combined + "Denoising Data", without DiffCol,
+// Normal or Z): the loader reads Cycles' denoiser features in place of the missing G-buffer
+// passes, in Kestrel's conventions (data/README.md: Denoising Normal in camera space, Denoising
+// Depth a ray-path length with 0 on the background).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "ExrLoader.h"
+#include "exr_test_util.h"
+#include "kestrel/Conventions.h"
+#include "kestrel/testing/PassHarness.h"
+
+using kestrel::exr::ExrLoader;
+using kestrel::testing::PassHarness;
+using namespace exrtest;
+
+namespace {
+
+Imath::Box2i box2(int w, int h) {
+    return Imath::Box2i({0, 0}, {w - 1, h - 1});
+}
+
+void addGroup(Channels& ch, const std::string& layer, const char* comps, std::vector<float> v) {
+    for (int c = 0; comps[c]; ++c)
+        ch["ViewLayer." + layer + "." + comps[c]].assign(2, v[size_t(c)]);
+}
+
+}  // namespace
+
+TEST(ExrLoaderDenoisingData, FeaturesStandInForMissingPasses) {
+    TempDir tmp("denoising-data");
+    Channels ch;
+    addGroup(ch, "Combined", "RGBA", {0.5f, 0.5f, 0.5f, 1.f});
+    addGroup(ch, "Denoising Albedo", "RGB", {0.25f, 0.5f, 0.75f});
+    addGroup(ch, "Denoising Normal", "XYZ", {0.f, 1.f, 0.f});
+    ch["ViewLayer.Denoising Depth.Z"] = {7.5f, 0.f};  // pixel 1 is background
+    writeExr(tmp.path / "f.0001.exr", box2(2, 1), ch);
+    auto h = PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / "f.####.exr").string()}});
+    RecordingResolve rc(1);
+    h.pass().resolve(rc);
+    EXPECT_EQ(rc.absent.count("albedo"), 0u);
+    EXPECT_EQ(rc.absent.count("normal"), 0u);
+    EXPECT_EQ(rc.absent.count("depth"), 0u);
+    EXPECT_EQ(rc.absent.count("diffuseAlbedo"), 1u);  // the split needs DiffCol/GlossCol
+    h.useOutputs({"albedo", "normal", "depth"});
+    h.ctx.frameNumber = 1;
+    h.run();
+    EXPECT_EQ(h.out("albedo").at(2, 0, 0), 0.75f);
+    EXPECT_EQ(h.out("normal").at(1, 1, 0), 1.f);  // no camera.json: stays in camera space
+    EXPECT_EQ(h.out("depth").at(0, 0, 0), 7.5f);
+    EXPECT_EQ(h.out("depth").at(0, 1, 0), kestrel::kBackgroundDepth);
+}
+
+TEST(ExrLoaderDenoisingData, MissingNormalIsNamedAsBlendersUiNamesIt) {
+    TempDir tmp("no-normal");
+    Channels ch;
+    addGroup(ch, "Combined", "RGBA", {0.5f, 0.5f, 0.5f, 1.f});
+    writeExr(tmp.path / "f.0001.exr", box2(2, 1), ch);
+    auto h = PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / "f.####.exr").string()}});
+    RecordingResolve rc(1);
+    h.pass().resolve(rc);
+    EXPECT_EQ(rc.absent["normal"],
+              "layout blender has no channel ViewLayer.Normal.R/G/B (nor ViewLayer.Denoising "
+              "Normal): enable View Layer > Passes > Data > Normal");
+    EXPECT_NE(rc.absent["albedo"].find("Light > Diffuse > Color"), std::string::npos);
+}
+
+// With a camera, the camera-space Denoising Normal is rotated to world space: on the real
+// outdoor render (which has both) it then agrees with the Normal pass on the surfaces it
+// describes (not through mirrors: there it describes the reflected surface).
+TEST(ExrLoaderDenoisingData, DenoisingNormalRotatedToWorldMatchesNormalPass) {
+    const std::string dir = sharedData("blender-street");
+    if (dir.empty() || !std::filesystem::exists(dir + "/noisy/frame_0005.exr"))
+        GTEST_SKIP() << "../shared/data/blender-street not present";
+    const std::string file = dir + "/noisy/frame_0005.exr";
+    TempDir tmp("street-nonormal");
+    Channels ch;
+    for (const char* c : {"R", "G", "B", "A"})
+        ch[std::string("ViewLayer.Combined.") + c] = readChannel(file, std::string("ViewLayer.Combined.") + c);
+    for (const char* c : {"X", "Y", "Z"})
+        ch[std::string("ViewLayer.Denoising Normal.") + c] =
+            readChannel(file, std::string("ViewLayer.Denoising Normal.") + c);
+    const int w = 320, hgt = 180;
+    writeExr(tmp.path / "frame_0005.exr", box2(w, hgt), ch);
+    std::filesystem::copy_file(dir + "/camera.json", tmp.path / "camera.json");
+    auto h = PassHarness::make<ExrLoader>({1, 1},
+                                          {{"path", (tmp.path / "frame_####.exr").string()}});
+    h.useOutputs({"normal"});
+    h.ctx.frameNumber = 5;
+    h.run();
+    const std::vector<float> nx = readChannel(file, "ViewLayer.Normal.X"),
+                             ny = readChannel(file, "ViewLayer.Normal.Y"),
+                             nz = readChannel(file, "ViewLayer.Normal.Z");
+    int agree = 0, surface = 0;
+    for (int y = 0; y < hgt; ++y)
+        for (int x = 0; x < w; ++x) {
+            const size_t i = size_t(y) * w + size_t(x);
+            const auto& n = h.out("normal");
+            const float d = n.at(0, x, y) * nx[i] + n.at(1, x, y) * ny[i] + n.at(2, x, y) * nz[i];
+            if (nx[i] * nx[i] + ny[i] * ny[i] + nz[i] * nz[i] < 0.5f) continue;  // background
+            ++surface;
+            agree += d > 0.99f;
+        }
+    ASSERT_GT(surface, w * hgt / 3);
+    EXPECT_GT(agree, surface * 8 / 10) << agree << " of " << surface;
+}
