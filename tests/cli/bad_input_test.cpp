@@ -1,0 +1,123 @@
+// kestrel run with the inputs a new user gets wrong (docs/errors.md): each case checks the exit
+// code, the one error line and what it names, and that no input frame or earlier output changed
+// (content checksums of the whole sandbox before and after).
+#include <sys/mount.h>
+#include <sys/stat.h>
+
+#include <map>
+#include <thread>
+
+#include "CliRunner.h"
+#include "ExrCheck.h"
+
+using namespace clitest;
+
+namespace {
+
+/// FNV-1a of every regular file below `dir` (symlinks not followed), by path relative to it.
+std::map<std::string, uint64_t> checksums(const fs::path& dir) {
+    std::map<std::string, uint64_t> sums;
+    for (const auto& e : fs::recursive_directory_iterator(dir)) {
+        if (!e.is_regular_file() || e.is_symlink()) continue;
+        uint64_t h = 1469598103934665603ull;
+        for (unsigned char c : readText(e.path())) h = (h ^ c) * 1099511628211ull;
+        sums[fs::relative(e.path(), dir).string()] = h;
+    }
+    return sums;
+}
+
+/// One "error:" line containing every needle.
+void expectOneError(const CliResult& r, std::initializer_list<std::string> needles) {
+    auto lines = r.errorLines();
+    ASSERT_EQ(lines.size(), 1u) << r.all();
+    for (const auto& n : needles)
+        EXPECT_NE(lines[0].find(n), std::string::npos) << "missing '" << n << "' in: " << lines[0];
+    EXPECT_FALSE(looksLikeCrash(r.all())) << r.all();
+}
+
+class CliBadInput : public ::testing::Test {
+protected:
+    void SetUp() override {
+        // 32x24, 3 frames: about 0.05 s to generate.
+        if (!makeScene(box, box.work() / "scene", 32, 24, 3))
+            GTEST_SKIP() << "no scenegen in this build";
+        before = checksums(box.work() / "scene");
+    }
+    CliResult run(std::vector<std::string> extra, const std::string& env = "") {
+        std::vector<std::string> args = {"run",       (graphDir() / "copy.json").string(),
+                                         "--input",   "scene/noisy/frame_####.exr",
+                                         "--threads", "2"};
+        args.insert(args.end(), extra.begin(), extra.end());
+        return box.run(args, env);
+    }
+    void expectInputsUntouched() {
+        EXPECT_EQ(checksums(box.work() / "scene"), before) << "an input frame changed";
+    }
+    fs::path noisy() const { return box.work() / "scene" / "noisy"; }
+
+    Sandbox box;
+    std::map<std::string, uint64_t> before;
+};
+
+// --- outputs that are inputs -------------------------------------------------------------
+
+TEST_F(CliBadInput, OutputPatternEqualToInputIsRefused) {
+    auto r = run({"--frames", "1-3", "--output", "scene/noisy/frame_####.exr"});
+    EXPECT_EQ(r.code, 2) << r.all();
+    expectOneError(r, {"scene/noisy/frame_####.exr", "input.path", "output.path"});
+    expectInputsUntouched();
+}
+
+TEST_F(CliBadInput, OutputThroughSymlinkedFolderIsRefused) {
+    fs::create_directory_symlink("scene/noisy", box.work() / "alias");
+    auto r = run({"--frames", "1-3", "--output", "alias/frame_####.exr"});
+    EXPECT_EQ(r.code, 2) << r.all();
+    expectOneError(r, {"alias/frame_0001.exr", "frame 1", "scene/noisy/frame_0001.exr"});
+    expectInputsUntouched();
+}
+
+TEST_F(CliBadInput, OutputThroughDotDotIsRefused) {
+    auto r = run({"--frames", "1-3", "--output", "scene/noisy/../noisy/frame_%04d.exr"});
+    EXPECT_EQ(r.code, 2) << r.all();
+    expectOneError(r, {"frame_0001.exr", "frame 1", "input.path"});
+    expectInputsUntouched();
+}
+
+TEST_F(CliBadInput, OutputHardLinkedToInputIsRefused) {
+    fs::create_directories(box.work() / "links");
+    for (int f = 1; f <= 3; ++f)
+        fs::create_hard_link(noisy() / frameName("frame_", f, ".exr"),
+                             box.work() / "links" / frameName("l.", f, ".exr"));
+    auto r = run({"--frames", "1-3", "--output", "links/l.####.exr"});
+    EXPECT_EQ(r.code, 2) << r.all();
+    expectOneError(r, {"links/l.0001.exr", "hard link"});
+    expectInputsUntouched();
+}
+
+TEST_F(CliBadInput, OutputOntoReferenceIsRefused) {
+    auto r = run({"--frames", "1-3", "--reference", "scene/ref/frame_####.exr", "--output",
+                  "./scene/ref/frame_####.exr"});
+    EXPECT_EQ(r.code, 2) << r.all();
+    expectOneError(r, {"--reference", "scene/ref/frame_0001.exr"});
+    expectInputsUntouched();
+}
+
+// --- an output every frame overwrites ----------------------------------------------------
+
+TEST_F(CliBadInput, PlainOutputNameOverSeveralFramesIsRefused) {
+    auto r = run({"--frames", "1-3", "--output", "out.exr"});
+    EXPECT_EQ(r.code, 2) << r.all();
+    expectOneError(r, {"'out.exr'", "3 frames", "out.####.exr"});
+    EXPECT_FALSE(fs::exists(box.work() / "out.exr"));
+    expectInputsUntouched();
+}
+
+TEST_F(CliBadInput, PlainOutputNameForOneFrameIsWritten) {
+    auto r = run({"--frames", "2", "--output", "still.exr"});
+    EXPECT_EQ(r.code, 0) << r.all();
+    RgbImage img;
+    EXPECT_TRUE(readRgb((box.work() / "still.exr").string(), img));
+    expectInputsUntouched();
+}
+
+}  // namespace
