@@ -120,4 +120,43 @@ TEST_F(CliBadInput, PlainOutputNameForOneFrameIsWritten) {
     expectInputsUntouched();
 }
 
+// --- --resume and damaged outputs --------------------------------------------------------
+
+TEST_F(CliBadInput, ResumeRewritesTruncatedAndEmptyFrames) {
+    const fs::path out = box.work() / "out";
+    auto first = run({"--frames", "1-3", "--output", "out/c.####.exr"});
+    ASSERT_EQ(first.code, 0) << first.all();
+    // A crash left frame 2 empty (renamed before its data reached the disk) and frame 3 cut
+    // short inside its last chunk (its offset table complete: only the chunk sizes tell).
+    const auto size3 = fs::file_size(out / "c.0003.exr");
+    fs::resize_file(out / "c.0002.exr", 0);
+    fs::resize_file(out / "c.0003.exr", size3 - 10);
+    const auto frame1 = checksums(out).at("c.0001.exr");
+
+    auto r = run({"--frames", "1-3", "--output", "out/c.####.exr", "--resume"});
+    ASSERT_EQ(r.code, 0) << r.all();
+    EXPECT_NE(r.err.find("c.0002.exr is incomplete"), std::string::npos) << r.all();
+    for (int f = 1; f <= 3; ++f) {
+        RgbImage img;
+        std::string why;
+        EXPECT_TRUE(readRgb((out / frameName("c.", f, ".exr")).string(), img, &why))
+            << "frame " << f << ": " << why;
+    }
+    EXPECT_EQ(checksums(out).at("c.0001.exr"), frame1) << "a complete frame was rewritten";
+    EXPECT_EQ(countTempFiles(out), 0);
+    expectInputsUntouched();
+}
+
+TEST_F(CliBadInput, ResumeRewritesAFrameCutInsideItsLastChunk) {
+    const fs::path out = box.work() / "out";
+    auto first = run({"--frames", "1-3", "--output", "out/c.####.exr"});
+    ASSERT_EQ(first.code, 0) << first.all();
+    fs::resize_file(out / "c.0003.exr", fs::file_size(out / "c.0003.exr") - 1);
+    auto r = run({"--frames", "1-3", "--output", "out/c.####.exr", "--resume"});
+    ASSERT_EQ(r.code, 0) << r.all();
+    RgbImage img;
+    std::string why;
+    EXPECT_TRUE(readRgb((out / "c.0003.exr").string(), img, &why)) << why;
+}
+
 }  // namespace
