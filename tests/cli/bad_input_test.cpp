@@ -120,6 +120,40 @@ TEST_F(CliBadInput, PlainOutputNameForOneFrameIsWritten) {
     expectInputsUntouched();
 }
 
+// --- graphs that are not graph files -----------------------------------------------------
+
+TEST_F(CliBadInput, DeviceAsGraphIsRefusedAtOnce) {
+    // Before the fix this read /dev/urandom until memory ran out; the limits turn that into
+    // a failed test.
+    auto r = box.runWithin(20, {"run", "/dev/urandom"});
+    EXPECT_EQ(r.code, 2) << r.all();
+    expectOneError(r, {"/dev/urandom", "not a regular file"});
+}
+
+TEST_F(CliBadInput, DirectoryAsGraphSaysSo) {
+    fs::create_directories(box.work() / "somedir");
+    auto r = box.run({"run", "somedir/"});
+    EXPECT_EQ(r.code, 2) << r.all();
+    expectOneError(r, {"somedir", "is a directory"});
+}
+
+TEST_F(CliBadInput, HugeGraphFileIsRefused) {
+    writeText(box.work() / "big.json", std::string(17u << 20, ' '));
+    auto r = box.run({"validate", "big.json"});
+    EXPECT_EQ(r.code, 2) << r.all();
+    expectOneError(r, {"big.json", "16 MiB"});
+}
+
+// --- --set ------------------------------------------------------------------------------
+
+TEST_F(CliBadInput, SetNumberBeyondDoubleNamesTheSet) {
+    auto r = run({"--frames", "1", "--output", "out/c.####.exr", "--set", "tonemap.exposure=1e999"});
+    EXPECT_EQ(r.code, 2) << r.all();
+    expectOneError(r, {"--set tonemap.exposure=1e999", "overflow"});
+    EXPECT_EQ(r.err.find("json.exception"), std::string::npos) << r.all();
+    EXPECT_FALSE(fs::exists(box.work() / "out"));
+}
+
 // --- --resume and damaged outputs --------------------------------------------------------
 
 TEST_F(CliBadInput, ResumeRewritesTruncatedAndEmptyFrames) {
