@@ -85,6 +85,7 @@ FileIdentity identify(const std::string& name) {
     return id;
 }
 
+/// A file the run touches, and the parameter ("input.path") that names it.
 struct InputFile {
     std::string name, label;
 };
@@ -123,6 +124,22 @@ void checkNotInputs(const std::vector<NamedPattern>& inputs,
         }
 }
 
+/// Two writers (or a writer's EXR and its PNG preview) on one file: the last one to finish
+/// would silently replace the other's frame.
+void checkOutputsDistinct(const std::vector<NamedPattern>& outputs, const RunFrames& frames) {
+    std::map<std::string, InputFile> seen;  // resolved path -> first writer of it
+    for (const auto& o : outputs)
+        for (int64_t f : frames.written) {
+            const std::string name = o.pattern.expand(f);
+            auto [it, fresh] = seen.emplace(identify(name).canonical, InputFile{name, o.label});
+            if (!fresh && it->second.label != o.label)
+                throw Error("output " + name + " (" + o.label + ", frame " + std::to_string(f) +
+                            ") is also written by " + it->second.label +
+                            ": one would overwrite the other; give them different patterns");
+            if (!o.pattern.hasFrameToken()) break;
+        }
+}
+
 }  // namespace
 
 void checkOutputsAreSafe(const GraphDesc& graph, const Registry& registry, const RunFrames& frames,
@@ -133,6 +150,7 @@ void checkOutputsAreSafe(const GraphDesc& graph, const Registry& registry, const
     if (!reference.empty()) inputs.push_back({"--reference", FramePattern(reference)});
     checkNotInputs(inputs, outputs, frames);  // first: destroying inputs is the worse harm
     checkFrameTokens(outputs, frames.written.size());
+    checkOutputsDistinct(outputs, frames);
 }
 
 }  // namespace kestrel::cli

@@ -120,6 +120,14 @@ TEST_F(CliBadInput, PlainOutputNameForOneFrameIsWritten) {
     expectInputsUntouched();
 }
 
+TEST_F(CliBadInput, PreviewOntoTheFramesIsRefused) {
+    auto r = run({"--frames", "1-3", "--output", "out/c.####.exr", "--set",
+                  "output.preview=out/c.####.exr"});
+    EXPECT_EQ(r.code, 2) << r.all();
+    expectOneError(r, {"out/c.0001.exr", "output.preview", "output.path"});
+    EXPECT_FALSE(fs::exists(box.work() / "out"));
+}
+
 // --- graphs that are not graph files -----------------------------------------------------
 
 TEST_F(CliBadInput, DeviceAsGraphIsRefusedAtOnce) {
