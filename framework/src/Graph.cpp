@@ -232,7 +232,8 @@ GraphDesc loadGraphFile(const std::filesystem::path& path) {
     in.read(text.data(), std::streamsize(text.size()));
     text.resize(size_t(in.gcount()));
     if (text.size() > kMaxGraphBytes)
-        throw Error("graph file " + path.string() + " is larger than 16 MiB (is it the right file?)");
+        throw Error("graph file " + path.string() +
+                    " is larger than 16 MiB (is it the right file?)");
     return parseGraph(text, path);
 }
 

@@ -71,7 +71,8 @@ void PluginLoader::loadDirectories(const std::vector<fs::path>& dirs, Registry& 
             if (it->is_regular_file(fec) && it->path().extension() == ".so")
                 modules.push_back(it->path());
         }
-        if (ec) throw Error("plugin directory " + dir.string() + ": cannot be read: " + ec.message());
+        if (ec)
+            throw Error("plugin directory " + dir.string() + ": cannot be read: " + ec.message());
         std::sort(modules.begin(), modules.end());
         for (const auto& m : modules) load(m, registry);
     }

@@ -5,8 +5,8 @@
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfOutputFile.h>
-#include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/ImfStdIO.h>
+#include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/ImfThreading.h>
 #include <OpenEXR/ImfVersion.h>
 #include <fcntl.h>
@@ -75,15 +75,20 @@ int linesPerChunk(Imf::Compression c) {
     switch (c) {
         case Imf::NO_COMPRESSION:
         case Imf::RLE_COMPRESSION:
-        case Imf::ZIPS_COMPRESSION: return 1;
+        case Imf::ZIPS_COMPRESSION:
+            return 1;
         case Imf::ZIP_COMPRESSION:
-        case Imf::PXR24_COMPRESSION: return 16;
+        case Imf::PXR24_COMPRESSION:
+            return 16;
         case Imf::PIZ_COMPRESSION:
         case Imf::B44_COMPRESSION:
         case Imf::B44A_COMPRESSION:
-        case Imf::DWAA_COMPRESSION: return 32;
-        case Imf::DWAB_COMPRESSION: return 256;
-        default: return 0;
+        case Imf::DWAA_COMPRESSION:
+            return 32;
+        case Imf::DWAB_COMPRESSION:
+            return 256;
+        default:
+            return 0;
     }
 }
 
@@ -220,9 +225,10 @@ bool ExrWriter::frameWritten(int64_t frame) const {
     std::error_code ec;
     if (!fs::exists(file, ec)) return false;
     if (isCompleteExr(file)) return true;
-    spdlog::warn("ExrWriter: {} is incomplete or unreadable (an interrupted write?); frame {} "
-                 "is written again",
-                 file, frame);
+    spdlog::warn(
+        "ExrWriter: {} is incomplete or unreadable (an interrupted write?); frame {} "
+        "is written again",
+        file, frame);
     return false;
 }
 
@@ -359,7 +365,8 @@ void ExrWriter::writeExr(const ImageView& img, const std::string& file, const Fr
 
 void ExrWriter::injectFault(const char* step, int64_t frame) const {
     if (frame == faultFrame_ && faultStep_ == step)
-        throw Error(std::string("injected fault at step '") + step + "' (KESTREL_TEST_WRITE_FAULT)");
+        throw Error(std::string("injected fault at step '") + step +
+                    "' (KESTREL_TEST_WRITE_FAULT)");
 }
 
 }  // namespace kestrel::exr

@@ -35,7 +35,7 @@ private:
     int zipLevel_;
     float exposure_;
     ToneMap toneMap_;
-    std::string faultStep_;    // empty unless a test injects a write fault
+    std::string faultStep_;  // empty unless a test injects a write fault
     int64_t faultFrame_ = 0;
 
     // Per-run warning flags (logging only, not image state) and conversion scratch.

@@ -33,9 +33,12 @@ bool readsFiles(const PassType& t) {
         if (p.kind == PortKind::Input) return false;
     return t.desc.findParam("path") != nullptr;
 }
-bool writesFiles(const PassType& t) { return t.desc.sink && t.desc.findParam("path") != nullptr; }
+bool writesFiles(const PassType& t) {
+    return t.desc.sink && t.desc.findParam("path") != nullptr;
+}
 
-void collect(const GraphDesc& g, const Registry& reg, bool outputs, std::vector<NamedPattern>& out) {
+void collect(const GraphDesc& g, const Registry& reg, bool outputs,
+             std::vector<NamedPattern>& out) {
     for (const auto& n : g.passes) {
         const PassType* t = reg.find(n.type);
         if (!t || !(outputs ? writesFiles(*t) : readsFiles(*t))) continue;

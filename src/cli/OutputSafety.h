@@ -2,12 +2,12 @@
 // Checks made before frame 1 so that a run never destroys what the user has: an output that
 // names (or resolves to) a file the run reads, an output without a frame number that every
 // frame would overwrite, two outputs on one file. All are usage errors (exit 2), in one line.
+#include <kestrel/Graph.h>
+#include <kestrel/Registry.h>
+
 #include <cstdint>
 #include <string>
 #include <vector>
-
-#include <kestrel/Graph.h>
-#include <kestrel/Registry.h>
 
 namespace kestrel::cli {
 

@@ -92,8 +92,8 @@ public:
     /// run() under `timeout SECONDS` and a 4 GB address-space limit: for inputs that once made
     /// the CLI read forever, so a regression fails the test instead of hanging the machine.
     CliResult runWithin(int seconds, const std::vector<std::string>& args) {
-        return runLimited(args, "", "ulimit -v 4000000 && timeout -s KILL " +
-                                        std::to_string(seconds) + " ");
+        return runLimited(args, "",
+                          "ulimit -v 4000000 && timeout -s KILL " + std::to_string(seconds) + " ");
     }
 
 private:

@@ -155,7 +155,8 @@ TEST_F(CliBadInput, HugeGraphFileIsRefused) {
 // --- --set ------------------------------------------------------------------------------
 
 TEST_F(CliBadInput, SetNumberBeyondDoubleNamesTheSet) {
-    auto r = run({"--frames", "1", "--output", "out/c.####.exr", "--set", "tonemap.exposure=1e999"});
+    auto r =
+        run({"--frames", "1", "--output", "out/c.####.exr", "--set", "tonemap.exposure=1e999"});
     EXPECT_EQ(r.code, 2) << r.all();
     expectOneError(r, {"--set tonemap.exposure=1e999", "overflow"});
     EXPECT_EQ(r.err.find("json.exception"), std::string::npos) << r.all();
@@ -369,8 +370,9 @@ TEST_F(CliBadInput, PluginPathToNothingIsAWarning) {
     auto r = run({"--frames", "1", "--output", "out/c.####.exr"},
                  "KESTREL_PLUGIN_PATH=/nonexistent/kestrel-plugins");
     EXPECT_EQ(r.code, 0) << r.all();
-    EXPECT_NE(r.err.find("warning: KESTREL_PLUGIN_PATH: /nonexistent/kestrel-plugins does not exist"),
-              std::string::npos)
+    EXPECT_NE(
+        r.err.find("warning: KESTREL_PLUGIN_PATH: /nonexistent/kestrel-plugins does not exist"),
+        std::string::npos)
         << r.all();
 }
 
