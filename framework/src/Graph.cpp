@@ -2,6 +2,8 @@
 
 #include <fnmatch.h>
 
+#include <cstdint>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -45,6 +47,17 @@ void checkKeys(const json& obj, const std::set<std::string>& allowed, const std:
         }
 }
 
+/// nlohmann's message without its "[json.exception.out_of_range.406] " tag, with the reason
+/// for a number overflow ("number overflow parsing '1e999'" alone does not say what the limit is).
+std::string jsonProblem(const json::exception& e) {
+    std::string msg = e.what();
+    if (auto close = msg.find("] "); msg.rfind("[json.exception.", 0) == 0 && close != msg.npos)
+        msg = msg.substr(close + 2);
+    if (msg.find("number overflow") != std::string::npos)
+        msg += " (beyond the largest double, about 1.8e308)";
+    return msg;
+}
+
 }  // namespace
 
 GraphDesc parseGraph(const std::string& text, const std::filesystem::path& source) {
@@ -65,7 +78,7 @@ GraphDesc parseGraph(const std::string& text, const std::filesystem::path& sourc
     } catch (const json::exception& e) {
         // Other parser errors (e.g. out_of_range.406 "number overflow parsing '1e400'") must be
         // a GraphError too, not escape to the caller (found by fuzz/graph_fuzzer seed errors.json).
-        throw GraphError(std::vector<Diagnostic>{{"", where + ": JSON " + e.what()}});
+        throw GraphError(std::vector<Diagnostic>{{"", where + ": JSON " + jsonProblem(e)}});
     }
     GraphDesc g;
     g.sourcePath = source;
@@ -186,12 +199,42 @@ GraphDesc parseGraph(const std::string& text, const std::filesystem::path& sourc
     return g;
 }
 
+namespace {
+// A graph is a few kilobytes; anything far larger is the wrong file (a frame, /dev/urandom).
+constexpr std::uintmax_t kMaxGraphBytes = 16u << 20;
+
+/// Refuses what cannot be a graph before reading it: a device or pipe would be read forever.
+void checkGraphFile(const std::filesystem::path& path) {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    const fs::file_status st = fs::status(path, ec);
+    if (ec || !fs::exists(st))
+        throw Error("cannot read graph file " + path.string() + ": " +
+                    (ec ? ec.message() : std::string("no such file")));
+    if (fs::is_directory(st))
+        throw Error("graph file " + path.string() + " is a directory (expected a .json file)");
+    if (!fs::is_regular_file(st))
+        throw Error("graph file " + path.string() +
+                    " is not a regular file (a device, pipe or socket); expected a .json file");
+    const std::uintmax_t size = fs::file_size(path, ec);
+    if (!ec && size > kMaxGraphBytes)
+        throw Error("graph file " + path.string() + " is " + std::to_string(size) +
+                    " bytes; a graph is at most 16 MiB (is it the right file?)");
+}
+}  // namespace
+
 GraphDesc loadGraphFile(const std::filesystem::path& path) {
+    checkGraphFile(path);
     std::ifstream in(path, std::ios::binary);
     if (!in) throw Error("cannot read graph file " + path.string());
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return parseGraph(ss.str(), path);
+    // Read at most one byte past the limit: the file may have grown since it was checked.
+    std::string text(kMaxGraphBytes + 1, '\0');
+    in.read(text.data(), std::streamsize(text.size()));
+    text.resize(size_t(in.gcount()));
+    if (text.size() > kMaxGraphBytes)
+        throw Error("graph file " + path.string() +
+                    " is larger than 16 MiB (is it the right file?)");
+    return parseGraph(text, path);
 }
 
 void applyOverride(GraphDesc& graph, const std::string& assignment) {
@@ -208,6 +251,10 @@ void applyOverride(GraphDesc& graph, const std::string& assignment) {
         value = json::parse(text);
     } catch (const json::parse_error&) {
         value = text;  // not JSON: a plain string
+    } catch (const json::exception& e) {
+        // A number beyond a double (1e999) is JSON the parser refuses: the graph file's message,
+        // naming the assignment instead of a file.
+        throw Error("--set " + assignment + ": " + jsonProblem(e));
     }
     // A pattern (*, ?, [..]) sets the parameter on every pass whose name matches: e.g.
     // '*atrous*.exact=true' for all A-Trous iterations of every chain.

@@ -62,14 +62,32 @@ void PluginLoader::loadDirectories(const std::vector<fs::path>& dirs, Registry& 
             spdlog::debug("plugin directory {} does not exist; skipped", dir.string());
             continue;
         }
+        // Error-code forms throughout: an unreadable folder or a broken entry is reported as
+        // an Error naming it, never as an escaping filesystem_error.
         std::vector<fs::path> modules;
-        for (const auto& entry : fs::directory_iterator(dir, ec))
-            if (entry.is_regular_file() && entry.path().extension() == ".so")
-                modules.push_back(entry.path());
+        fs::directory_iterator it(dir, ec);
+        for (; !ec && it != fs::directory_iterator(); it.increment(ec)) {
+            std::error_code fec;
+            if (it->is_regular_file(fec) && it->path().extension() == ".so")
+                modules.push_back(it->path());
+        }
+        if (ec)
+            throw Error("plugin directory " + dir.string() + ": cannot be read: " + ec.message());
         std::sort(modules.begin(), modules.end());
         for (const auto& m : modules) load(m, registry);
     }
 }
+
+namespace {
+/// A folder the user named that holds nothing is most likely a typo: say so once, then run on
+/// (the built-in passes may be all the graph needs).
+void warnIfNotDirectory(const fs::path& dir) {
+    std::error_code ec;
+    if (fs::is_directory(dir, ec)) return;
+    spdlog::warn("KESTREL_PLUGIN_PATH: {} {}; no plugins loaded from it", dir.string(),
+                 fs::exists(dir, ec) ? "is not a directory" : "does not exist");
+}
+}  // namespace
 
 std::vector<fs::path> defaultPluginDirectories() {
     std::vector<fs::path> dirs;
@@ -87,7 +105,10 @@ std::vector<fs::path> defaultPluginDirectories() {
         while (start <= s.size()) {
             size_t end = s.find(':', start);
             if (end == std::string::npos) end = s.size();
-            if (end > start) dirs.emplace_back(s.substr(start, end - start));
+            if (end > start) {
+                dirs.emplace_back(s.substr(start, end - start));
+                warnIfNotDirectory(dirs.back());
+            }
             start = end + 1;
         }
     }

@@ -3,18 +3,26 @@
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfOutputFile.h>
+#include <OpenEXR/ImfStdIO.h>
 #include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/ImfThreading.h>
+#include <OpenEXR/ImfVersion.h>
+#include <fcntl.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <limits>
+#include <tuple>
+#include <utility>
 
 #include "ZipWriter.h"
 
@@ -47,6 +55,114 @@ std::string tempName(const std::string& final) {
     fs::path p(final);
     return (folderOf(final) / ("." + p.filename().string() + ".tmp-" + std::to_string(::getpid())))
         .string();
+}
+
+/// Flushes `path` (a file or a folder) to the disk. Without it a power loss after the rename
+/// can leave the frame's name pointing at an empty or partial file, which --resume would trust.
+void syncToDisk(const std::string& path, bool folder) {
+    const int fd = ::open(path.c_str(), O_RDONLY | (folder ? O_DIRECTORY : 0) | O_CLOEXEC);
+    if (fd < 0) throw Error("cannot open " + path + " to flush it: " + std::strerror(errno));
+    const int rc = ::fsync(fd);
+    const int err = errno;
+    ::close(fd);
+    // Some file systems cannot flush a folder (EINVAL): the file itself is on disk already.
+    if (rc != 0 && !(folder && err == EINVAL))
+        throw Error("cannot flush " + path + " to disk: " + std::strerror(err));
+}
+
+/// Lines per chunk of a scan-line file (OpenEXR's numLinesInBuffer for each compressor).
+int linesPerChunk(Imf::Compression c) {
+    switch (c) {
+        case Imf::NO_COMPRESSION:
+        case Imf::RLE_COMPRESSION:
+        case Imf::ZIPS_COMPRESSION:
+            return 1;
+        case Imf::ZIP_COMPRESSION:
+        case Imf::PXR24_COMPRESSION:
+            return 16;
+        case Imf::PIZ_COMPRESSION:
+        case Imf::B44_COMPRESSION:
+        case Imf::B44A_COMPRESSION:
+        case Imf::DWAA_COMPRESSION:
+            return 32;
+        case Imf::DWAB_COMPRESSION:
+            return 256;
+        default:
+            return 0;
+    }
+}
+
+uint64_t readLE(const unsigned char* b, int bytes) {
+    uint64_t v = 0;
+    for (int i = bytes - 1; i >= 0; --i) v = (v << 8) | b[i];
+    return v;
+}
+
+/// Whether every chunk of a single-part scan-line file lies wholly inside the file: its offset
+/// table entry is set, and the chunk's header and data end before the file does. A frame cut
+/// short by a crash fails this even when its offset table was written (the writer writes the
+/// table last, but other writers do not).
+bool chunksPresent(std::ifstream& f, Imf::StdIFStream& is, const Imf::Header& h, uint64_t size) {
+    const int lines = linesPerChunk(h.compression());
+    const Imath::Box2i dw = h.dataWindow();
+    if (lines == 0 || dw.max.y < dw.min.y) return false;
+    const uint64_t chunks = (uint64_t(dw.max.y - dw.min.y) + uint64_t(lines)) / uint64_t(lines);
+    const uint64_t table = is.tellg();
+    if (table + chunks * 8 > size) return false;
+    std::vector<unsigned char> offsets(chunks * 8);
+    f.seekg(std::streamoff(table));
+    if (!f.read(reinterpret_cast<char*>(offsets.data()), std::streamsize(offsets.size())))
+        return false;
+    for (uint64_t i = 0; i < chunks; ++i) {
+        const uint64_t at = readLE(&offsets[i * 8], 8);
+        unsigned char head[8];
+        if (at < table + chunks * 8 || at + 8 > size) return false;
+        f.seekg(std::streamoff(at));
+        if (!f.read(reinterpret_cast<char*>(head), 8)) return false;
+        const uint64_t bytes = readLE(head + 4, 4);
+        if (bytes == 0 || bytes > 0x7fffffffu || at + 8 + bytes > size) return false;
+    }
+    return true;
+}
+
+/// A complete, readable EXR: magic number, a header OpenEXR parses, and every chunk present.
+/// Tiled, multi-part and deep files (not what this writer makes) are trusted when OpenEXR
+/// finds all their pixels.
+bool isCompleteExr(const std::string& path) {
+    try {
+        std::ifstream f(path, std::ios::binary | std::ios::ate);
+        if (!f) return false;
+        const uint64_t size = uint64_t(f.tellg());
+        f.seekg(0);
+        unsigned char magic[8];
+        if (size < 8 || !f.read(reinterpret_cast<char*>(magic), 8)) return false;
+        const int version = int(readLE(magic + 4, 4));
+        if (int(readLE(magic, 4)) != Imf::MAGIC) return false;
+        if (Imf::isTiled(version) || Imf::isMultiPart(version) || Imf::isNonImage(version)) {
+            f.close();
+            Imf::InputFile in(path.c_str(), 1);
+            return in.isComplete();
+        }
+        Imf::StdIFStream is(f, path.c_str());
+        Imf::Header h;
+        int v = version;
+        h.readFrom(is, v);
+        return chunksPresent(f, is, h, size);
+    } catch (const std::exception&) {
+        return false;  // a header OpenEXR cannot parse: rewrite the frame
+    }
+}
+
+/// The test-only fault hook: KESTREL_TEST_WRITE_FAULT=STEP:FRAME (STEP one of open, chunk,
+/// fsync, rename) makes the write of FRAME fail at that step as a full disk or a lost mount
+/// would. Read once per writer, so it costs nothing per frame when unset.
+std::pair<std::string, int64_t> faultFromEnvironment() {
+    const char* env = std::getenv("KESTREL_TEST_WRITE_FAULT");
+    if (!env) return {};
+    const std::string text = env;
+    const auto colon = text.find(':');
+    if (colon == std::string::npos) return {};
+    return {text.substr(0, colon), std::strtoll(text.c_str() + colon + 1, nullptr, 10)};
 }
 
 void ensureWritableFolder(const std::string& file) {
@@ -91,6 +207,7 @@ ExrWriter::ExrWriter(const ParamValues& p)
       exposure_(p.getFloat("exposure")) {
     if (!p.getString("preview").empty())
         preview_ = std::make_unique<FramePattern>(p.getString("preview"));
+    std::tie(faultStep_, faultFrame_) = faultFromEnvironment();
     const std::string& tm = p.getString("tonemap");
     toneMap_ = tm == "reinhard" ? ToneMap::Reinhard
                : tm == "clamp"  ? ToneMap::Clamp
@@ -104,8 +221,15 @@ void ExrWriter::beginRun(const RunContext& rc) {
 }
 
 bool ExrWriter::frameWritten(int64_t frame) const {
+    const std::string file = path_.expand(frame);
     std::error_code ec;
-    return fs::exists(path_.expand(frame), ec);
+    if (!fs::exists(file, ec)) return false;
+    if (isCompleteExr(file)) return true;
+    spdlog::warn(
+        "ExrWriter: {} is incomplete or unreadable (an interrupted write?); frame {} "
+        "is written again",
+        file, frame);
+    return false;
 }
 
 void ExrWriter::execute(FrameContext& ctx, PassIO& io) {
@@ -118,6 +242,7 @@ void ExrWriter::execute(FrameContext& ctx, PassIO& io) {
         std::string tmp = tempName(png);
         try {
             writePngPreview(img, tmp, exposure_, toneMap_);
+            syncToDisk(tmp, false);
             fs::rename(tmp, png);
         } catch (const std::exception& e) {
             std::error_code ec;
@@ -206,25 +331,42 @@ void ExrWriter::writeExr(const ImageView& img, const std::string& file, const Fr
 
     int threads = ctx.parallel ? ctx.parallel->threadCount() : 1;
     std::string tmp = tempName(file);
+    const int64_t frame = ctx.frameNumber;
     try {
+        injectFault("open", frame);
         if (compression_ == "zip" || compression_ == "zips") {
             // The planes in the header's (alphabetical) channel order.
             std::vector<const void*> planes;
             for (auto it = header.channels().begin(); it != header.channels().end(); ++it)
                 planes.push_back(fb.findSlice(it.name())->base);
-            writeZipScanlines(tmp, header, planes, threads, zipLevel_);
+            ZipChunkHook hook;
+            if (faultStep_ == "chunk" && faultFrame_ == frame)
+                hook = [this, frame](size_t chunk) {
+                    if (chunk == 1) injectFault("chunk", frame);  // after one chunk is on disk
+                };
+            writeZipScanlines(tmp, header, planes, threads, zipLevel_, hook);
         } else {
             if (Imf::globalThreadCount() < threads) Imf::setGlobalThreadCount(threads);
             Imf::OutputFile out(tmp.c_str(), header, Imf::globalThreadCount());
             out.setFrameBuffer(fb);
             out.writePixels(H);
-        }  // closed (and flushed) before the rename
+        }  // closed before it is flushed and renamed
+        injectFault("fsync", frame);
+        syncToDisk(tmp, false);
+        injectFault("rename", frame);
         fs::rename(tmp, file);
+        syncToDisk(folderOf(file).string(), true);  // the rename itself survives a power loss
     } catch (const std::exception& e) {
         std::error_code ec;
         fs::remove(tmp, ec);
         throw Error("cannot write " + file + ": " + e.what());
     }
+}
+
+void ExrWriter::injectFault(const char* step, int64_t frame) const {
+    if (frame == faultFrame_ && faultStep_ == step)
+        throw Error(std::string("injected fault at step '") + step +
+                    "' (KESTREL_TEST_WRITE_FAULT)");
 }
 
 }  // namespace kestrel::exr

@@ -25,6 +25,8 @@ public:
 
 private:
     void writeExr(const ImageView& img, const std::string& path, const FrameContext& ctx);
+    /// Throws when KESTREL_TEST_WRITE_FAULT names this step and frame (tests only).
+    void injectFault(const char* step, int64_t frame) const;
 
     FramePattern path_;
     std::unique_ptr<FramePattern> preview_;
@@ -33,6 +35,8 @@ private:
     int zipLevel_;
     float exposure_;
     ToneMap toneMap_;
+    std::string faultStep_;  // empty unless a test injects a write fault
+    int64_t faultFrame_ = 0;
 
     // Per-run warning flags (logging only, not image state) and conversion scratch.
     bool warnedRange_ = false, warnedNaN_ = false;

@@ -49,7 +49,8 @@ struct Encoder {
 }  // namespace
 
 void writeZipScanlines(const std::string& path, const Imf::Header& header,
-                       const std::vector<const void*>& planes, int threads, int level) {
+                       const std::vector<const void*>& planes, int threads, int level,
+                       const ZipChunkHook& afterChunk) {
     const Imf::Compression compression = header.compression();
     if (compression != Imf::ZIP_COMPRESSION && compression != Imf::ZIPS_COMPRESSION)
         throw Error("writeZipScanlines: the header's compression is not ZIP or ZIPS");
@@ -163,6 +164,10 @@ void writeZipScanlines(const std::string& path, const Imf::Header& header,
             putLE32(b + 4, uint32_t(encoded[i].size()));
             os.write(reinterpret_cast<const char*>(b), 8);
             os.write(reinterpret_cast<const char*>(encoded[i].data()), int(encoded[i].size()));
+            if (afterChunk) {
+                file.flush();  // the chunks so far are in the file, as a failing disk leaves them
+                afterChunk(i + 1);
+            }
         }
         os.seekp(table);
         os.write(reinterpret_cast<const char*>(offsets.data()), int(offsets.size()));

@@ -7,16 +7,22 @@
 // to the same values (tests read them back through OpenEXR).
 #include <OpenEXR/ImfHeader.h>
 
+#include <functional>
 #include <string>
 #include <vector>
 
 namespace kestrel::exr {
 
+/// Called after each chunk is written with the number written so far (tests inject faults).
+using ZipChunkHook = std::function<void(size_t chunksWritten)>;
+
 /// `planes`: one per channel of `header`, in the header's (alphabetical) order, each the data
 /// window's width x height values of the channel's type (HALF or FLOAT), row by row. `level`:
 /// deflate level, 1 (fastest) to 12 (smallest). Throws what the stream throws on I/O errors,
 /// and Error for a header it cannot write (not ZIP/ZIPS, or a channel of another type).
+/// The file is closed, not flushed to disk: the caller fsyncs before renaming it.
 void writeZipScanlines(const std::string& path, const Imf::Header& header,
-                       const std::vector<const void*>& planes, int threads, int level);
+                       const std::vector<const void*>& planes, int threads, int level,
+                       const ZipChunkHook& afterChunk = {});
 
 }  // namespace kestrel::exr

@@ -11,6 +11,7 @@
 
 #include "Commands.h"
 #include "Common.h"
+#include "OutputSafety.h"
 #include "Progress.h"
 #include "kestrel/Executor.h"
 #include "kestrel/FramePattern.h"
@@ -96,6 +97,17 @@ int runGraph(const RunOptions& o) {
         for (int i = o.warmup; i >= 1; --i) schedule.push_back({frames.front() - i * step, false});
     }
     for (auto f : frames) schedule.push_back({f, true});
+    try {
+        RunFrames planned;
+        for (auto [f, write] : schedule) {
+            planned.read.push_back(f);
+            if (write) planned.written.push_back(f);
+        }
+        checkOutputsAreSafe(g, plugins->registry, planned, o.reference);
+    } catch (const Error& e) {
+        std::cerr << "error: " << e.what() << "\n";
+        return 2;
+    }
 
     auto sinks = compiled->sinks();
     if (o.resume) {

@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
@@ -84,12 +85,25 @@ public:
 
     /// Runs `kestrel <args>` in work() with KESTREL_PLUGIN_PATH cleared (only the build's own
     /// plugins), plus `env` ("NAME=value ..."), and captures everything.
+    /// Safe to call from several threads at once (tests of concurrent runs).
     CliResult run(const std::vector<std::string>& args, const std::string& env = "") {
-        const fs::path out = root_ / ("run" + std::to_string(runs_) + ".out");
-        const fs::path err = root_ / ("run" + std::to_string(runs_) + ".err");
-        ++runs_;
-        std::string cmd = "cd " + quote(work().string()) + " && env KESTREL_PLUGIN_PATH= " + env +
-                          " " + quote(KESTREL_CLI);
+        return runLimited(args, env, "");
+    }
+    /// run() under `timeout SECONDS` and a 4 GB address-space limit: for inputs that once made
+    /// the CLI read forever, so a regression fails the test instead of hanging the machine.
+    CliResult runWithin(int seconds, const std::vector<std::string>& args) {
+        return runLimited(args, "",
+                          "ulimit -v 4000000 && timeout -s KILL " + std::to_string(seconds) + " ");
+    }
+
+private:
+    CliResult runLimited(const std::vector<std::string>& args, const std::string& env,
+                         const std::string& prefix) {
+        const int id = runs_++;
+        const fs::path out = root_ / ("run" + std::to_string(id) + ".out");
+        const fs::path err = root_ / ("run" + std::to_string(id) + ".err");
+        std::string cmd = "cd " + quote(work().string()) + " && " + prefix +
+                          "env KESTREL_PLUGIN_PATH= " + env + " " + quote(KESTREL_CLI);
         for (const auto& a : args) cmd += " " + quote(a);
         cmd += " </dev/null >" + quote(out.string()) + " 2>" + quote(err.string());
         int status = std::system(cmd.c_str());
@@ -100,9 +114,8 @@ public:
         return r;
     }
 
-private:
     fs::path root_;
-    int runs_ = 0;
+    std::atomic<int> runs_{0};
 };
 
 /// Generates a tiny canonical scene (noisy/frame_%04d.exr, frames 1..frames) under `dir` with
