@@ -105,10 +105,10 @@ void setLights(StreetState& s, bool night) {
     }
 }
 
-// Brick paving: 0.45 x 0.3 m bricks in offset rows with mortar joints, each brick a little
+// Brick paving: 0.32 x 0.24 m bricks in offset rows with mortar joints, each brick a little
 // darker or lighter (a few pixels per brick near the camera, finer than a pixel far away).
 V3 brickAlbedo(V3 p) {
-    constexpr float kLength = 0.45f, kRow = 0.3f, kJoint = 0.03f;
+    constexpr float kLength = 0.32f, kRow = 0.24f, kJoint = 0.025f;
     const float row = std::floor(p.z / kRow);
     const float shift = (int(row) & 1) ? 0.5f * kLength : 0.f;
     const float col = std::floor((p.x + shift) / kLength);
