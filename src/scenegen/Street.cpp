@@ -93,7 +93,7 @@ void setLights(StreetState& s, bool night) {
         s.skyZenith = {0.004f, 0.006f, 0.016f};
         s.sun = false;
         s.signRadiance = {5.f, 1.f, 3.f};
-        s.lampRadiance = {260.f, 220.f, 150.f};
+        s.lampRadiance = {95.f, 80.f, 55.f};
     } else {
         s.skyHorizon = {0.85f, 0.92f, 1.05f};
         s.skyZenith = {0.18f, 0.36f, 0.85f};
@@ -101,7 +101,7 @@ void setLights(StreetState& s, bool night) {
         s.sunDir = normalize(V3{-0.55f, 0.65f, 0.52f});
         s.sunIrradiance = {4.2f, 3.9f, 3.3f};
         s.signRadiance = {7.f, 1.4f, 4.f};
-        s.lampRadiance = {30.f, 27.f, 20.f};
+        s.lampRadiance = {12.f, 11.f, 8.f};
     }
 }
 
@@ -165,8 +165,8 @@ StreetState makeStreet(const SceneOptions& opt, int frame) {
 
     s.spheres.push_back({{1.6f, 0.65f, -6.5f}, 0.65f, kGoldSphere});
     s.spheres.push_back({{-1.5f, 0.45f, -4.6f}, 0.45f, kChromeSphere});
-    s.lampCenter = {2.62f, 3.72f, -8.f};
-    s.lampRadius = 0.12f;
+    s.lampCenter = {2.62f, 3.8f, -8.f};
+    s.lampRadius = 0.2f;
     s.spheres.push_back({s.lampCenter, s.lampRadius, kLampHead});
 
     for (auto& m : s.objectToWorld) m = identity4();
