@@ -215,8 +215,17 @@ bool intersectStreet(const StreetState& s, const Ray& r, float tMax, Hit& hit) {
 }
 
 bool occludedStreet(const StreetState& s, const Ray& r, float tMax) {
-    Hit hit;
-    return intersectStreet(s, r, tMax, hit);
+    // Any hit ends the search (shadow rays are half of all rays).
+    float t;
+    int axis;
+    for (const StreetBox& b : s.boxes)
+        if (hitAabb(b, r, tMax, t, axis)) return true;
+    if (inside(s.fenceBounds, r.o) || hitAabb(s.fenceBounds, r, tMax, t, axis))
+        for (const StreetBox& b : s.fence)
+            if (hitAabb(b, r, tMax, t, axis)) return true;
+    for (const SphereObj& sp : s.spheres)
+        if (hitSphereStreet(sp, r, tMax, t)) return true;
+    return false;
 }
 
 Material materialAt(const StreetState& s, const Hit& hit, V3 p) {
