@@ -1,4 +1,5 @@
-// kestrel scenegen: path-trace the built-in analytic scene (1 spp + AOVs + a reference).
+// kestrel scenegen: path-trace a built-in analytic scene (1 spp + AOVs + a reference); --scene
+// picks one of the zoo's named configurations, whose settings the other options override.
 #include <scenegen/SceneGen.h>
 
 #include <iostream>
@@ -10,17 +11,49 @@
 
 namespace kestrel::cli {
 
+namespace {
+
+std::string zooHelp() {
+    std::string text =
+        "Named scene of the zoo (its size and settings; the other options override "
+        "them):";
+    for (const auto& z : scenegen::zooScenes()) text += "\n  " + z.name + ": " + z.description;
+    return text;
+}
+
+/// The options given on the command line, applied over a zoo scene's own settings.
+void overrideGiven(scenegen::SceneOptions& zoo, const scenegen::SceneOptions& given,
+                   const CLI::App& cmd) {
+    auto given_ = [&](const char* name) { return cmd.count(name) > 0; };
+    if (given_("--width")) zoo.width = given.width;
+    if (given_("--height")) zoo.height = given.height;
+    if (given_("--frames")) zoo.frames = given.frames;
+    if (given_("--first")) zoo.firstFrame = given.firstFrame;
+    if (given_("--spp")) zoo.referenceSpp = given.referenceSpp;
+    if (given_("--seed")) zoo.seed = given.seed;
+    if (given_("--static-camera")) zoo.staticCamera = given.staticCamera;
+    if (given_("--camera-cut")) zoo.cameraCutFrame = given.cameraCutFrame;
+    if (given_("--pixel-filter")) zoo.pixelFilterWidth = given.pixelFilterWidth;
+    zoo.threads = given.threads;
+}
+
+}  // namespace
+
 void addScenegenCommand(CLI::App& app, Action& action) {
     auto* cmd = app.add_subcommand(
-        "scenegen", "Path-trace the built-in scene: 1-spp frames with every AOV and a reference");
+        "scenegen", "Path-trace a built-in scene: 1-spp frames with every AOV and a reference");
     struct Opts {
         scenegen::SceneOptions scene;
+        std::string sceneName;
         std::string layout = "canonical";
         std::string omit;
         std::string out;
     };
     auto o = std::make_shared<Opts>();
+    std::vector<std::string> names;
+    for (const auto& z : scenegen::zooScenes()) names.push_back(z.name);
     cmd->add_option("--out", o->out, "Output folder (noisy/ and ref/ inside)")->required();
+    cmd->add_option("--scene", o->sceneName, zooHelp())->check(CLI::IsMember(names));
     cmd->add_option("--width", o->scene.width, "Width in pixels")->check(CLI::Range(1, 16384));
     cmd->add_option("--height", o->scene.height, "Height in pixels")->check(CLI::Range(1, 16384));
     cmd->add_option("--frames", o->scene.frames, "Number of frames")->check(CLI::Range(1, 100000));
@@ -30,11 +63,21 @@ void addScenegenCommand(CLI::App& app, Action& action) {
     cmd->add_option("--seed", o->scene.seed, "Random seed");
     cmd->add_option("--layout", o->layout, "canonical or games202")
         ->check(CLI::IsMember({"canonical", "games202"}));
-    cmd->add_option("--omit", o->omit, "AOVs to leave out, comma-separated (albedo,emission,motion,...)");
+    cmd->add_option("--omit", o->omit,
+                    "AOVs to leave out, comma-separated (albedo,emission,motion,...)");
     cmd->add_flag("--static-camera", o->scene.staticCamera, "Keep the camera still");
     cmd->add_option("--camera-cut", o->scene.cameraCutFrame, "Frame at which the camera jumps");
+    cmd->add_option("--pixel-filter", o->scene.pixelFilterWidth,
+                    "Blackman-Harris pixel filter width in pixels (0: pixel centres; street "
+                    "scenes only; Blender's default is 1.5)")
+        ->check(CLI::Range(0.0, 8.0));
     cmd->add_option("--threads", o->scene.threads, "Threads (default: all cores)");
-    cmd->callback([&action, o] {
+    cmd->callback([&action, o, cmd] {
+        if (!o->sceneName.empty()) {
+            scenegen::SceneOptions zoo = scenegen::zooScene(o->sceneName).options;
+            overrideGiven(zoo, o->scene, *cmd);
+            o->scene = zoo;
+        }
         action = [o]() -> int {
             o->scene.layout = o->layout == "games202" ? scenegen::SceneOptions::Layout::Games202
                                                       : scenegen::SceneOptions::Layout::Canonical;
@@ -45,8 +88,8 @@ void addScenegenCommand(CLI::App& app, Action& action) {
                 auto stats = scenegen::writeSequence(o->scene, o->out, [](int done, int total) {
                     spdlog::debug("scenegen: frame {}/{}", done, total);
                 });
-                spdlog::info("scenegen: {} frames ({} files) in {} in {:.2f} s", stats.framesWritten,
-                             stats.filesWritten, o->out, stats.seconds);
+                spdlog::info("scenegen: {} frames ({} files) in {} in {:.2f} s",
+                             stats.framesWritten, stats.filesWritten, o->out, stats.seconds);
             } catch (const std::invalid_argument& e) {
                 std::cerr << "error: scenegen: " << e.what() << "\n";
                 return 2;

@@ -1,18 +1,15 @@
 // renderFrame / renderReference: primary rays through pixel centres, AOVs, threading over rows.
 #include <algorithm>
-#include <atomic>
 #include <stdexcept>
-#include <thread>
 
 #include "Integrator.h"
+#include "RenderUtil.h"
+#include "StreetRender.h"
 #include "scenegen/SceneGen.h"
 
 namespace kestrel::scenegen {
 
 namespace {
-
-constexpr float kBackgroundDepth = 1e10f;  // kestrel::kBackgroundDepth (Conventions.h)
-constexpr int32_t kBackgroundId = -1;
 
 void checkOptions(const SceneOptions& o) {
     if (o.width < 1 || o.height < 1 || o.width > 16384 || o.height > 16384)
@@ -20,38 +17,10 @@ void checkOptions(const SceneOptions& o) {
     if (o.referenceSpp < 1) throw std::invalid_argument("scenegen: referenceSpp must be >= 1");
     if (o.bounces < 1 || o.bounces > 16)
         throw std::invalid_argument("scenegen: bounces must be in 1..16");
-}
-
-/// Runs fn(row) for every row on `threads` std::threads (rows handed out by an atomic counter;
-/// every row's result depends only on the row, so the split does not matter).
-template <class Fn>
-void forEachRow(int height, int threads, Fn&& fn) {
-    int n = threads > 0 ? threads : int(std::max(1u, std::thread::hardware_concurrency()));
-    n = std::min(n, height);
-    std::atomic<int> next{0};
-    auto worker = [&] {
-        for (int y = next++; y < height; y = next++) fn(y);
-    };
-    if (n <= 1) {
-        worker();
-        return;
-    }
-    std::vector<std::thread> pool;
-    pool.reserve(size_t(n - 1));
-    for (int t = 0; t < n - 1; ++t) pool.emplace_back(worker);
-    worker();
-    for (auto& th : pool) th.join();
-}
-
-void set3(std::array<std::vector<float>, 3>& img, size_t k, V3 v) {
-    img[0][k] = v.x;
-    img[1][k] = v.y;
-    img[2][k] = v.z;
-}
-
-template <size_t N>
-void alloc(std::array<std::vector<float>, N>& img, size_t n) {
-    for (auto& c : img) c.assign(n, 0.f);
+    if (!(o.pixelFilterWidth >= 0.f && o.pixelFilterWidth <= 8.f))
+        throw std::invalid_argument("scenegen: pixelFilterWidth must be in 0..8 pixels");
+    if (o.kind == SceneOptions::Kind::Room && o.pixelFilterWidth > 0.f)
+        throw std::invalid_argument("scenegen: the room scene has no pixel filter (use a street)");
 }
 
 }  // namespace
@@ -60,8 +29,13 @@ int objectCount() {
     return kObjectCount;
 }
 
+int objectCount(const SceneOptions& options) {
+    return options.kind == SceneOptions::Kind::Room ? int(kObjectCount) : int(kStreetObjectCount);
+}
+
 FrameAovs renderFrame(const SceneOptions& opt, int frame) {
     checkOptions(opt);
+    if (opt.kind != SceneOptions::Kind::Room) return renderStreetFrame(opt, frame);
     const SceneState cur = makeScene(opt, frame);
     // Motion vectors point to the previous frame by the same animation formula (also for the
     // first frame of a sequence).
@@ -75,6 +49,8 @@ FrameAovs renderFrame(const SceneOptions& opt, int frame) {
     f.frame = frame;
     alloc(f.color, n), alloc(f.albedo, n), alloc(f.emission, n), alloc(f.direct, n);
     alloc(f.indirect, n), alloc(f.normal, n), alloc(f.position, n), alloc(f.motion, n);
+    alloc(f.diffuse, n), alloc(f.diffuseAlbedo, n), alloc(f.specular, n),
+        alloc(f.specularAlbedo, n);
     f.depth.assign(n, kBackgroundDepth);
     f.objectId.assign(n, kBackgroundId);
     f.worldToCamera = cur.camera.worldToCamera;
@@ -120,6 +96,9 @@ FrameAovs renderFrame(const SceneOptions& opt, int frame) {
             set3(f.direct, k, L.direct);
             set3(f.indirect, k, L.indirect);
             set3(f.color, k, L.direct + L.indirect + e);
+            // Every room surface is Lambertian: all of the light is diffuse.
+            set3(f.diffuse, k, L.direct + L.indirect);
+            set3(f.diffuseAlbedo, k, sp.albedo);
             // Where the point was: through the object's motion, into the previous camera.
             const V3 pPrev =
                 xformPoint(prev.objectToWorld[hit.id], xformPoint(cur.worldToObject[hit.id], p));
@@ -136,6 +115,7 @@ FrameAovs renderFrame(const SceneOptions& opt, int frame) {
 
 std::vector<float> renderReference(const SceneOptions& opt, int frame) {
     checkOptions(opt);
+    if (opt.kind != SceneOptions::Kind::Room) return renderStreetReference(opt, frame);
     const SceneState cur = makeScene(opt, frame);
     const int w = opt.width, h = opt.height, spp = opt.referenceSpp;
     const size_t n = size_t(w) * size_t(h);

@@ -125,6 +125,10 @@ bool hitBox(const BoxObj& b, const Ray& r, float tMax, float& t, V3* localN, V3*
 
 }  // namespace
 
+Camera lookAtCamera(V3 pos, V3 target, int width, int height) {
+    return makeCamera(pos, target, width, height);
+}
+
 SceneState makeScene(const SceneOptions& opt, int frame) {
     SceneState s{};
     // Animation parameter: frame 1 is s = 0; formulas are smooth and bounded for any frame.

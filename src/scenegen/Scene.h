@@ -78,6 +78,9 @@ struct SceneState {
     V3 glowRadiance;
 };
 
+/// A camera at `pos` looking at `target` (+Y up, vertical fov 50 degrees), with its matrices.
+Camera lookAtCamera(V3 pos, V3 target, int width, int height);
+
 /// The scene at `frame` (any integer, also firstFrame - 1 for motion vectors).
 SceneState makeScene(const SceneOptions& options, int frame);
 

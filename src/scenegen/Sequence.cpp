@@ -13,9 +13,10 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const std::set<std::string> kOmittable = {"color",    "albedo",   "emission", "direct",
-                                          "indirect", "normal",   "depth",    "position",
-                                          "motion",   "objectId", "camera"};
+const std::set<std::string> kOmittable = {"color",          "albedo",   "emission",      "direct",
+                                          "indirect",       "diffuse",  "diffuseAlbedo", "specular",
+                                          "specularAlbedo", "normal",   "depth",         "position",
+                                          "motion",         "objectId", "camera"};
 
 std::string numbered(const char* pattern, int frame) {
     char buf[64];
@@ -60,6 +61,13 @@ public:
         add3("emission", f.emission, "emission.", "RGB");
         add3("direct", f.direct, "direct.", "RGB");
         add3("indirect", f.indirect, "indirect.", "RGB");
+        // The room is Lambertian (specular 0): its files keep the channels they always had.
+        if (o_.kind != SceneOptions::Kind::Room) {
+            add3("diffuse", f.diffuse, "diffuse.", "RGB");
+            add3("diffuseAlbedo", f.diffuseAlbedo, "diffuseAlbedo.", "RGB");
+            add3("specular", f.specular, "specular.", "RGB");
+            add3("specularAlbedo", f.specularAlbedo, "specularAlbedo.", "RGB");
+        }
         add3("normal", f.normal, "normal.", "XYZ");
         if (keep("depth")) ch.push_back({"depth.Z", f.depth.data()});
         add3("position", f.position, "position.", "XYZ");
@@ -141,8 +149,9 @@ WriteStats writeSequence(const SceneOptions& options, const fs::path& dir,
         if (!kOmittable.count(name))
             throw std::invalid_argument("scenegen: unknown AOV '" + name +
                                         "' in omit (known: color, albedo, emission, direct, "
-                                        "indirect, normal, depth, position, motion, objectId, "
-                                        "camera)");
+                                        "indirect, diffuse, diffuseAlbedo, specular, "
+                                        "specularAlbedo, normal, depth, position, motion, "
+                                        "objectId, camera)");
     if (options.frames < 1) throw std::invalid_argument("scenegen: frames must be >= 1");
     const bool games = options.layout == SceneOptions::Layout::Games202;
     if (games) {

@@ -110,6 +110,41 @@ TEST(SceneGenFiles, CanonicalLayoutHasEveryChannelAndTheMatrices) {
     fs::remove_all(again);
 }
 
+TEST(SceneGenFiles, StreetFilesHaveTheDiffuseSpecularSplit) {
+    SceneOptions o = zooScene("street").options;
+    o.width = 48;
+    o.height = 32;
+    o.frames = 1;
+    o.referenceSpp = 2;
+    const fs::path dir = freshDir("street");
+    writeSequence(o, dir);
+    const ExrImage img = readExr(dir / "noisy/frame_0001.exr");
+    const FrameAovs f = renderFrame(o, 1);
+    const size_t n = f.objectId.size();
+    // The names the canonical loader reads (passes/exr/ChannelPlan.cpp, planCanonical).
+    for (const char* group : {"diffuse", "diffuseAlbedo", "specular", "specularAlbedo"})
+        for (const char* c : {".R", ".G", ".B"})
+            ASSERT_EQ(img.channels.count(std::string(group) + c), 1u) << group << c;
+    for (size_t k = 0; k < n; ++k) {
+        ASSERT_EQ(img.channels.at("specular.G")[k], f.specular[1][k]);
+        ASSERT_EQ(img.channels.at("specularAlbedo.R")[k], f.specularAlbedo[0][k]);
+        ASSERT_EQ(img.channels.at("diffuse.B")[k], f.diffuse[2][k]);
+    }
+    EXPECT_EQ(int(img.channels.count("objectId.id")), 1);
+    const auto* m = img.header.findTypedAttribute<Imf::M44fAttribute>(
+        "kestrel.objectToWorld." + std::to_string(objectCount(o) - 1));
+    EXPECT_NE(m, nullptr) << "one matrix per street object";
+    fs::remove_all(dir);
+
+    o.omit = {"specular", "specularAlbedo"};
+    writeSequence(o, dir);
+    const ExrImage without = readExr(dir / "noisy/frame_0001.exr");
+    EXPECT_EQ(without.channels.count("specular.R"), 0u);
+    EXPECT_EQ(without.channels.count("specularAlbedo.R"), 0u);
+    EXPECT_EQ(without.channels.count("diffuse.R"), 1u);
+    fs::remove_all(dir);
+}
+
 TEST(SceneGenFiles, OmittedAovsAreAbsent) {
     SceneOptions o = tiny();
     o.frames = 1;

@@ -1,8 +1,11 @@
 #pragma once
-// Procedural test scene: a small analytic room path-traced on the CPU at 1 spp with every AOV
-// the Kestrel passes consume, plus a many-spp reference, written as EXR sequences
-// (docs/canonical-layout.md). Deterministic: the output depends only on the options, never on
-// the thread count. Independent of the Kestrel framework (only OpenEXR and threads).
+// Procedural test scenes: a small analytic room (the default) or an outdoor street, path-traced on
+// the CPU at 1 spp with every AOV the Kestrel passes consume, plus a many-spp reference, written
+// as EXR sequences (docs/canonical-layout.md). zooScenes() names a set of configurations that
+// together cover what real content has (sky, fine texture, glossy and mirror surfaces, emitters,
+// thin geometry, disocclusion, fireflies, a camera cut, a jittered pixel filter). Deterministic:
+// the output depends only on the options, never on the thread count. Independent of the Kestrel
+// framework (only OpenEXR and threads).
 #include <array>
 #include <cstdint>
 #include <filesystem>
@@ -19,6 +22,11 @@ namespace kestrel::scenegen {
 using Mat4 = std::array<float, 16>;
 
 struct SceneOptions {
+    /// Room: the interior (default; its output never changes). Street: outdoor, sky + sun, brick
+    /// paving, glossy gold and mirror spheres, emitters, thin poles and fence, a van crossing.
+    /// StreetNight: the street at night (dim sky, no sun), lit by a small intense lamp that the
+    /// 1-spp frames only find by BSDF sampling: fireflies.
+    enum class Kind { Room, Street, StreetNight } kind = Kind::Room;
     int width = 160, height = 90;
     int frames = 8;
     int firstFrame = 1;
@@ -31,8 +39,14 @@ struct SceneOptions {
     /// 2 = direct + one indirect bounce (the default), 3 = two indirect bounces.
     int bounces = 2;
     int threads = 0;  ///< 0: hardware concurrency; the result never depends on it
-    /// AOVs left out of the files: albedo, emission, direct, indirect, normal, depth, position,
-    /// motion, objectId, camera (the matrices). Unknown names are rejected by writeSequence.
+    /// Width in pixels of a Blackman-Harris pixel filter (Blender's default is 1.5). 0: every
+    /// primary ray through the pixel centre. > 0: each 1-spp frame's primary ray goes through a
+    /// random point of the filter footprint (every G-buffer AOV is that one sample) and the
+    /// reference is the filtered average (anti-aliased). Street kinds only.
+    float pixelFilterWidth = 0.f;
+    /// AOVs left out of the files: albedo, emission, direct, indirect, diffuse, diffuseAlbedo,
+    /// specular, specularAlbedo, normal, depth, position, motion, objectId, camera (the matrices).
+    /// Unknown names are rejected by writeSequence.
     std::set<std::string> omit;
     enum class Layout { Canonical, Games202 } layout = Layout::Canonical;
 };
@@ -41,17 +55,23 @@ struct SceneOptions {
 /// Images are planar: channel c of pixel (x, y) (y = 0 is the top row) at [c][y * width + x].
 struct FrameAovs {
     int width = 0, height = 0, frame = 0;
-    std::array<std::vector<float>, 3> color;     ///< direct + indirect + emission
+    std::array<std::vector<float>, 3> color;     ///< direct + indirect + emission (sky)
     std::array<std::vector<float>, 3> albedo;    ///< first-hit diffuse albedo; 0 on background
-    std::array<std::vector<float>, 3> emission;  ///< first-hit emitted radiance; 0 on background
+    std::array<std::vector<float>, 3> emission;  ///< first-hit emitted radiance; sky radiance
     std::array<std::vector<float>, 3> direct;    ///< NEE at the first hit (radiance)
     std::array<std::vector<float>, 3> indirect;  ///< everything after the first bounce
-    std::array<std::vector<float>, 3> normal;    ///< world, unit, facing the camera; 0 on bg
-    std::array<std::vector<float>, 3> position;  ///< world; 0 on background
-    std::vector<float> depth;                    ///< linear view depth; 1e10 on background
-    std::array<std::vector<float>, 2> motion;    ///< pixels to frame-1, x right, y down
-    std::vector<int32_t> objectId;               ///< -1 on background
-    Mat4 worldToCamera{};                        ///< OpenGL view: camera looks down -Z, +Y up
+    /// Diffuse / specular split (Blender's convention): diffuse = diffuseIllum * diffuseAlbedo,
+    /// specular = specularIllum * specularAlbedo, color = diffuse + specular + emission.
+    std::array<std::vector<float>, 3> diffuse;
+    std::array<std::vector<float>, 3> diffuseAlbedo;  ///< = albedo
+    std::array<std::vector<float>, 3> specular;
+    std::array<std::vector<float>, 3> specularAlbedo;  ///< specular tint; 0 without a lobe
+    std::array<std::vector<float>, 3> normal;          ///< world, unit, facing the camera; 0 on bg
+    std::array<std::vector<float>, 3> position;        ///< world; 0 on background
+    std::vector<float> depth;                          ///< linear view depth; 1e10 on background
+    std::array<std::vector<float>, 2> motion;          ///< pixels to frame-1, x right, y down
+    std::vector<int32_t> objectId;                     ///< -1 on background
+    Mat4 worldToCamera{};                              ///< OpenGL view: camera looks down -Z, +Y up
     Mat4 projection{};    ///< OpenGL clip-from-camera (ndc in [-1, 1]) from the vertical fov
     Mat4 worldToPixel{};  ///< after the divide: pixel coords, x right, y down, centres at +0.5
     Mat4 cameraToWorld{};
@@ -61,11 +81,26 @@ struct FrameAovs {
 /// Renders frame `frame` at 1 spp with every AOV.
 FrameAovs renderFrame(const SceneOptions& options, int frame);
 /// Renders the reference of `frame` (options.referenceSpp samples): RGB planar, 3 * w * h floats
-/// (R plane, G plane, B plane). Same estimator and primary rays as renderFrame, other random
-/// numbers: it is the expectation of the 1-spp frames.
+/// (R plane, G plane, B plane). Same primary rays (the same filter distribution) as renderFrame,
+/// other random numbers: it is the expectation of the 1-spp frames. Same estimator too, except
+/// that the street's lamp is also sampled directly (the 1-spp frames only reach it by BSDF
+/// sampling: fireflies), which changes the variance, not the expectation.
 std::vector<float> renderReference(const SceneOptions& options, int frame);
-/// Number of objects (ids 0..N-1) of the scene.
+/// Number of objects (ids 0..N-1) of the room scene.
 int objectCount();
+/// Number of objects (ids 0..N-1) of the scene options.kind selects.
+int objectCount(const SceneOptions& options);
+
+/// A named configuration of the scene zoo.
+struct ZooScene {
+    std::string name;
+    SceneOptions options;
+    std::string description;  ///< what it covers
+};
+/// The zoo: every scene at its intended size (96x64, 12 frames, 256-spp references).
+std::vector<ZooScene> zooScenes();
+/// The zoo scene called `name`; throws std::invalid_argument naming the known ones otherwise.
+ZooScene zooScene(const std::string& name);
 
 struct WriteStats {
     double seconds = 0;
