@@ -38,6 +38,11 @@ PassDesc ReprojectionPass::describe() {
         .output("historyLength", Format::Float,
                 "reprojected history length, 0 where disoccluded or without valid history; when"
                 " prevHistoryLength is not fed, 1 where the reprojection succeeded")
+        .output("resampleBlur", Format::Float,
+                "how much resampling the history blurs it, in [0, 1]: 2 (fx (1 - fx) + fy (1 - "
+                "fy)) of the reprojected position's fractions fx, fy between pixel centres (0 on "
+                "a centre, 1 midway between four), 1 on the 3x3 fallback, 0 where disoccluded "
+                "(TAA weights the history down by it, Karis 2014)")
         .paramEnum("filter", "bilinear", {"bilinear", "catmullrom"},
                    "colour resampling: bilinear (SVGF) or Catmull-Rom 4x4 (sharp, for TAA)")
         .paramFloat("depthThreshold", 10.0, 0.0, 1e6,
@@ -206,7 +211,16 @@ struct PixelRef {
 
 struct PixelOut {
     float c[3], m[2], h;
+    float blur = 0;  ///< resampleBlur: 0 disoccluded, 1 on the 3x3 fallback
 };
+
+// resampleBlur of fractions fx, fy in [0, 1): 2 (fx (1 - fx) + fy (1 - fy)). Both bilinear and
+// Catmull-Rom weights reduce to one tap at a fraction of 0 and spread most at 0.5, where a
+// resampled detail is attenuated most (Karis 2014 weights the history down there, since the
+// attenuation compounds frame after frame).
+inline float resampleBlur(float fx, float fy) {
+    return 2.f * (fx * (1.f - fx) + fy * (1.f - fy));
+}
 
 // The complete per-pixel reprojection (bilinear taps, 3x3 fallback, Catmull-Rom), scalar, with
 // bounds checks on every tap. Used for the pixels the tap kernel does not take: taps near the
@@ -242,7 +256,7 @@ PixelOut reprojectPixel(const Sources& S, const PixelRef& P) {
     };
     int x0 = 0, y0 = 0;
     float fx = 0, fy = 0;
-    bool all4 = false;
+    bool all4 = false, fallback = false;
     if (P.ok) {
         const float bx = P.ppx - 0.5f, by = P.ppy - 0.5f;
         x0 = int(std::floor(bx));
@@ -266,12 +280,15 @@ PixelOut reprojectPixel(const Sources& S, const PixelRef& P) {
                 for (int k = -1; k <= 1; ++k)
                     if (consistent(cx + k, cy + j)) addTap(cx + k, cy + j, 1.f);
             all4 = false;
+            fallback = true;
         }
     }
     if (sumW <= 0.f) return {{0, 0, 0}, {0, 0}, 0};  // disoccluded
     const float inv = 1.f / sumW;
-    PixelOut o{
-        {acc[0] * inv, acc[1] * inv, acc[2] * inv}, {accM[0] * inv, accM[1] * inv}, accH * inv};
+    PixelOut o{{acc[0] * inv, acc[1] * inv, acc[2] * inv},
+               {accM[0] * inv, accM[1] * inv},
+               accH * inv,
+               fallback ? 1.f : resampleBlur(fx, fy)};
     if (S.catmullRom && all4 && x0 >= 1 && y0 >= 1 && x0 + 2 < w && y0 + 2 < h) {
         // Catmull-Rom 4x4 when every tap is consistent, clamped to the inner 2x2 taps' range
         // so negative lobes cannot ring.
@@ -524,8 +541,9 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
     const ImageView* outC = io.hasOutput("color") ? &io.output("color") : nullptr;
     const ImageView* outM = io.hasOutput("moments") ? &io.output("moments") : nullptr;
     const ImageView* outH = io.hasOutput("historyLength") ? &io.output("historyLength") : nullptr;
+    const ImageView* outB = io.hasOutput("resampleBlur") ? &io.output("resampleBlur") : nullptr;
     auto zeroAll = [&] {
-        for (const ImageView* o : {outC, outM, outH})
+        for (const ImageView* o : {outC, outM, outH, outB})
             if (o)
                 for (int c = 0; c < o->channels(); ++c)
                     std::fill(o->channel(c), o->channel(c) + o->pixels(), 0.f);
@@ -751,6 +769,11 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
             // Everything else, and the kernel's 3x3-fallback pixels, per pixel.
 #pragma GCC ivdep
             for (int x = 0; x < w; ++x) redo[x] = (rFast[x] == 0) | (rSumW[x] < 1e-4f);
+            // resampleBlur where the tap kernel's result is kept (its weight sum is at least
+            // 1e-4 there: not disoccluded) from the fractions; reprojectPixel's elsewhere.
+            float* ob = outB ? outB->row(0, y) : nullptr;
+            if (ob)
+                for (int x = 0; x < w; ++x) ob[x] = redo[x] ? 0.f : resampleBlur(rFx[x], rFy[x]);
             for (int x = nextFlag(redo, 0, w); x < w; x = nextFlag(redo, x + 1, w)) {
                 const PixelRef P{rPpx[x], rPpy[x],  rZRef[x], rn0[x],    rn1[x],
                                  rn2[x],  rInvZ[x], rInvN[x], rRefId[x], rOk[x] != 0};
@@ -758,7 +781,9 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
                 for (int c = 0; c < 3; ++c) oc[c][x] = o.c[c];
                 for (int c = 0; c < 2; ++c) om[c][x] = o.m[c];
                 oh[x] = o.h;
+                if (ob) ob[x] = o.blur;
             }
+
         }
     });
 }

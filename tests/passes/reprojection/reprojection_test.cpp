@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <tuple>
+
 #include "../SvgfTestImages.h"
 #include "ReprojectionPass.h"
 
@@ -153,6 +155,41 @@ TEST(Reprojection, HalfPixelMotionBlendsBilinearly) {
         EXPECT_GE(step.out("color").at(0, x, 2), 0.f);
         EXPECT_LE(step.out("color").at(0, x, 2), 1.f);
     }
+}
+
+TEST(Reprojection, ResampleBlurFollowsTheSubPixelOffset) {
+    // resampleBlur = 2 (fx (1 - fx) + fy (1 - fy)): 0 on a pixel centre, 1 midway between four,
+    // for both filters, in the tap kernel (interior) and the per-pixel path (border) alike.
+    for (const char* filter : {"bilinear", "catmullrom"}) {
+        for (auto [mx, my, expected] : {std::tuple{2.f, 0.f, 0.f}, std::tuple{1.5f, 0.5f, 1.f},
+                                        std::tuple{2.25f, 0.f, 0.375f},
+                                        std::tuple{0.75f, -0.25f, 0.75f}}) {
+            Frames f;
+            for (int y = 0; y < H; ++y)
+                for (int x = 0; x < W; ++x) {
+                    f.motion.at(0, x, y) = mx;
+                    f.motion.at(1, x, y) = my;
+                }
+            auto h = make(f, true, {{"filter", std::string(filter)}});
+            h.run();
+            for (auto [x, y] : {std::pair{3, 2}, std::pair{0, 0}, std::pair{4, 3}})
+                EXPECT_NEAR(h.out("resampleBlur").at(0, x, y), expected, 1e-5f)
+                    << filter << " motion " << mx << "," << my << " at " << x << "," << y;
+        }
+    }
+    // Disoccluded (every tap and the 3x3 fallback on another object): 0, like historyLength.
+    Frames f;
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) f.motion.at(0, x, y) = 0.5f;
+    for (int y = 1; y <= 4; ++y)
+        for (int x = 2; x <= 7; ++x) f.prevIds.atInt(x, y) = 7;
+    auto h = make(f, true, {{"filter", std::string("catmullrom")}});
+    h.run();
+    EXPECT_EQ(h.out("historyLength").at(0, 3, 2), 0.f);
+    EXPECT_EQ(h.out("resampleBlur").at(0, 3, 2), 0.f);
+    // Pixel (1, 2) maps to x = 2.0, midway between columns 1 and 2: column 2 is on the occluder,
+    // column 1 survives; the offset, not the surviving taps, sets the blur (fx 0.5, fy 0).
+    EXPECT_NEAR(h.out("resampleBlur").at(0, 1, 2), 0.5f, 1e-5f);
 }
 
 TEST(Reprojection, InvalidHistoryGivesZeros) {
