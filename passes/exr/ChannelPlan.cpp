@@ -39,6 +39,10 @@ const std::vector<OutputSpec>& loaderOutputs() {
     static const std::vector<OutputSpec> outputs = {
         {"color", Format::Float3, 0.f, "noisy radiance, linear HDR"},
         {"albedo", Format::Float3, 0.f, "surface albedo for demodulation"},
+        {"jitteredAlbedo", Format::Float3, 0.f,
+         "the albedo where the render is anti-aliased (a pixel filter wider than a pixel: one "
+         "sample of the footprint per frame, to be averaged over frames); absent when the render "
+         "is point-sampled"},
         {"emission", Format::Float3, 0.f, "emitted radiance (incl. environment)"},
         {"direct", Format::Float3, 0.f, "direct part of color (radiance)"},
         {"indirect", Format::Float3, 0.f, "indirect part of color (radiance)"},
@@ -172,7 +176,8 @@ struct Builder {
                 return int(i);
             }
         std::string missing = "channel " + groupHint(layers.front(), width(*plan.find(output)));
-        for (size_t i = 1; i < layers.size(); ++i) missing += (i == 1 ? " (nor " : ", ") + layers[i];
+        for (size_t i = 1; i < layers.size(); ++i)
+            missing += (i == 1 ? " (nor " : ", ") + layers[i];
         if (layers.size() > 1) missing += ")";
         describe(*plan.find(output), missing + ": enable View Layer > Passes > " + uiPath);
         return -1;
@@ -196,7 +201,7 @@ Plan planCanonical(const ChannelSets& files) {
     Builder b(Layout::Canonical, files);
     b.set("color", {{""}});
     for (const auto& o : loaderOutputs())
-        if (std::string(o.name) != "color") {
+        if (std::string(o.name) != "color" && std::string(o.name) != "jitteredAlbedo") {
             if (std::string(o.name) == "objectId") {
                 // "objectId.id" (the documented name) or any single channel of the layer.
                 b.set(o.name, {{"objectId.id"}});
@@ -272,7 +277,9 @@ Plan planGames202(const ChannelSets& files) {
     return b.plan;
 }
 
-void applyChannelOverrides(Plan& plan, const std::string& spec, const ChannelSets& files) {
+std::set<std::string> applyChannelOverrides(Plan& plan, const std::string& spec,
+                                            const ChannelSets& files) {
+    std::set<std::string> set;
     size_t start = 0;
     while (start < spec.size()) {
         size_t comma = spec.find(',', start);
@@ -289,6 +296,7 @@ void applyChannelOverrides(Plan& plan, const std::string& spec, const ChannelSet
         std::string out = item.substr(0, eq), expr = item.substr(eq + 1);
         Recipe* r = plan.find(out);
         if (!r) throw bad("no loader output named '" + out + "'");
+        set.insert(out);
         int n = r->format == Format::Int32 ? 1 : channelCount(r->format);
         r->terms.clear();
         r->backgroundMask.reset();
@@ -332,6 +340,7 @@ void applyChannelOverrides(Plan& plan, const std::string& spec, const ChannelSet
         r->absent = false;
         r->why = expr + " (channels parameter)";
     }
+    return set;
 }
 
 }  // namespace kestrel::exr

@@ -77,6 +77,8 @@ std::optional<std::string> blenderLayer(const std::set<std::string>& channels);
 /// Applies the `channels` parameter: "out=EXPR,out=EXPR,..." with EXPR a sum ('+') of products
 /// ('*') of channel groups; a group is a layer ("ViewLayer.DiffCol": its R,G,B or X,Y,Z...) or a
 /// full channel name; an empty EXPR marks the output absent. Throws Error naming the item.
-void applyChannelOverrides(Plan& plan, const std::string& spec, const ChannelSets& files);
+/// Returns the outputs it set.
+std::set<std::string> applyChannelOverrides(Plan& plan, const std::string& spec,
+                                            const ChannelSets& files);
 
 }  // namespace kestrel::exr

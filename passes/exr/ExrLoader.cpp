@@ -13,6 +13,9 @@
 #include <cstring>
 #include <filesystem>
 #include <map>
+#include <set>
+
+#include "PixelJitter.h"
 
 namespace kestrel::exr {
 
@@ -146,6 +149,10 @@ PassDesc ExrLoader::describe() {
     d.paramString("channels", "",
                   "override output channels: out=Layer[*Layer][+...],... e.g. "
                   "albedo=ViewLayer.DiffCol (empty expression: leave the output out)");
+    d.paramEnum("antiAliased", "auto", {"auto", "true", "false"},
+                "whether the render is anti-aliased (jitteredAlbedo present); auto: the pixel "
+                "filter camera.json or kestrel.pixelFilterWidth states, else the first frame's "
+                "depth jitter");
     d.paramInt("maxPixels", int64_t(1) << 27, 1, int64_t(1) << 40,
                "largest data or display window accepted (pixels), checked before allocating; "
                "OpenEXR's per-chunk buffers are held to 16 bytes per maxPixels pixel");
@@ -162,6 +169,7 @@ ExrLoader::ExrLoader(const ParamValues& p)
       layoutParam_(p.getString("layout")),
       cameraParam_(p.getString("camera")),
       channelsParam_(p.getString("channels")),
+      antiAliasedParam_(p.getString("antiAliased")),
       maxPixels_(p.getInt("maxPixels")),
       prefetch_(p.getBool("prefetch")) {}
 
@@ -375,8 +383,9 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
             } else {
                 note("no camera.json beside the frames or one folder up: no camera matrices");
                 if (plan_.find("normal")->cameraSpace)
-                    note("normal: Denoising Normal stays in camera space (no camera to rotate it "
-                         "by)");
+                    note(
+                        "normal: Denoising Normal stays in camera space (no camera to rotate it "
+                        "by)");
             }
         } else {
             plan_ = planCanonical(sets);
@@ -387,11 +396,57 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
                             "', this loader reads 'canonical'");
         }
     }
-    if (!channelsParam_.empty()) applyChannelOverrides(plan_, channelsParam_, sets);
+    std::set<std::string> overridden;
+    if (!channelsParam_.empty()) overridden = applyChannelOverrides(plan_, channelsParam_, sets);
+    if (!overridden.count("jitteredAlbedo")) planAntiAliasing(firstPath);
     note(std::string("layout ") + layoutName(plan_.layout) + " (" + firstPath + ")");
     for (const auto& r : plan_.recipes)
         if (!r.absent) note(r.output + " = " + r.why);
     planned_ = true;
+}
+
+std::optional<float> ExrLoader::statedFilterWidth(const std::string& firstPath) const {
+    if (plan_.layout == Layout::Blender)
+        return cameras_ ? cameras_->pixelFilterWidth() : std::nullopt;
+    if (plan_.layout != Layout::Canonical) return std::nullopt;
+    ExrInput in(firstPath, maxPixels_);
+    const auto* a = in.header().findTypedAttribute<Imf::FloatAttribute>("kestrel.pixelFilterWidth");
+    if (!a || !std::isfinite(a->value())) return std::nullopt;
+    return std::max(0.f, a->value());
+}
+
+std::optional<float> ExrLoader::measureDepthJitter(const std::string& firstPath) const {
+    const Recipe& depth = *plan_.find("depth");
+    if (depth.absent || !depth.isDirect() || !depth.terms[0][0][0].file.empty())
+        return std::nullopt;
+    ExrInput in(firstPath, maxPixels_);
+    const Box dp = in.displayWindow();
+    const int W = int(dp.width()), H = int(dp.height());
+    std::vector<float> z(size_t(W) * size_t(H));
+    readChannels(in, dp, W, z.size(), {{depth.terms[0][0][0].name, z.data()}}, {depth.fill}, 1);
+    return depthJitterScore(z.data(), W, H);
+}
+
+void ExrLoader::planAntiAliasing(const std::string& firstPath) {
+    Recipe& out = *plan_.find("jitteredAlbedo");
+    const Recipe& albedo = *plan_.find("albedo");
+    auto absent = [&](std::string why) {
+        out.terms.clear();
+        out.absent = true;
+        out.why = std::move(why);
+    };
+    if (albedo.absent) return absent("no albedo (" + albedo.why + ")");
+    AntiAliasing aa;
+    if (antiAliasedParam_ != "auto") {
+        aa = {antiAliasedParam_ == "true", "antiAliased parameter " + antiAliasedParam_};
+    } else {
+        const auto stated = statedFilterWidth(firstPath);
+        aa = decideAntiAliasing(stated, stated ? std::nullopt : measureDepthJitter(firstPath));
+    }
+    if (!aa.antiAliased) return absent(aa.why);
+    out.terms = albedo.terms;
+    out.absent = false;
+    out.why = albedo.why + ": " + aa.why;
 }
 
 void ExrLoader::resolve(ResolveContext& rc) {
@@ -439,8 +494,6 @@ void ExrLoader::fillScene(int64_t frame, SceneData& scene) {
         }
         if (auto* a = h.findTypedAttribute<Imf::M44fAttribute>("kestrel.worldToCamera"))
             scene.worldToCamera = toMat4(a->value());
-        if (auto* a = h.findTypedAttribute<Imf::FloatAttribute>("kestrel.pixelFilterWidth"))
-            scene.pixelFilterWidth = std::isfinite(a->value()) ? std::max(0.f, a->value()) : 0.f;
         const std::string prefix = "kestrel.objectToWorld.";
         for (auto it = h.begin(); it != h.end(); ++it) {
             std::string name = it.name();

@@ -43,6 +43,10 @@ private:
     std::string filePath(const std::string& role, int64_t frame) const;
     ExrInput& openRole(const std::string& role, int64_t frame);
     void fillScene(int64_t frame, SceneData& scene);
+    /// jitteredAlbedo: the albedo's recipe where the render is anti-aliased (PixelJitter.h).
+    void planAntiAliasing(const std::string& firstPath);
+    std::optional<float> statedFilterWidth(const std::string& firstPath) const;
+    std::optional<float> measureDepthJitter(const std::string& firstPath) const;
 
     /// Decoded file channels of one frame, read ahead on a background thread while the graph
     /// computes the frame before it (parameter "prefetch").
@@ -56,7 +60,7 @@ private:
     void joinPrefetch();
 
     // parameters
-    std::string path_, layoutParam_, cameraParam_, channelsParam_;
+    std::string path_, layoutParam_, cameraParam_, channelsParam_, antiAliasedParam_;
     int64_t maxPixels_;
     int threads_ = 1;  // the engine's, for decoding (set by beginFrame)
     bool prefetch_ = true;

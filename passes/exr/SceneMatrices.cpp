@@ -36,9 +36,9 @@ Mat4 toMat(const nlohmann::json& j) {
 
 namespace {
 /// render_settings.filter_width_px, else the width in its pixel_filter text ("BLACKMAN_HARRIS,
-/// width 1.5 px"); 0 when the file does not say.
-float pixelFilterWidth(const nlohmann::json& j) {
-    if (!j.contains("render_settings") || !j["render_settings"].is_object()) return 0.f;
+/// width 1.5 px"); nullopt when the file does not say.
+std::optional<float> statedFilterWidth(const nlohmann::json& j) {
+    if (!j.contains("render_settings") || !j["render_settings"].is_object()) return std::nullopt;
     const auto& r = j["render_settings"];
     if (r.contains("filter_width_px") && r["filter_width_px"].is_number())
         return std::max(0.f, r["filter_width_px"].get<float>());
@@ -52,7 +52,7 @@ float pixelFilterWidth(const nlohmann::json& j) {
             }
         }
     }
-    return 0.f;
+    return std::nullopt;
 }
 }  // namespace
 
@@ -67,11 +67,10 @@ BlenderCameras::BlenderCameras(const fs::path& file) : path_(file) {
         if (j.contains("object_pass_index"))
             for (const auto& [name, id] : j["object_pass_index"].items())
                 ids[name] = id.get<int32_t>();
-        const float filterWidth = pixelFilterWidth(j);
+        pixelFilterWidth_ = statedFilterWidth(j);
         for (const auto& f : j.at("frames")) {
             SceneData s;
             s.hasCamera = true;
-            s.pixelFilterWidth = filterWidth;
             s.worldToCamera = toMat(f.at("view"));
             s.worldToPixel = viewport * toMat(f.at("view_projection"));
             if (f.contains("objects"))

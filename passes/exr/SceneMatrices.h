@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <map>
+#include <optional>
 
 #include "kestrel/FrameContext.h"
 
@@ -16,9 +17,12 @@ public:
     /// Fills scene for `frame`; false when the file lists no such frame.
     bool fill(int64_t frame, SceneData& scene) const;
     const std::filesystem::path& path() const { return path_; }
+    /// The pixel filter width its render settings state, if they do.
+    std::optional<float> pixelFilterWidth() const { return pixelFilterWidth_; }
 
 private:
     std::filesystem::path path_;
+    std::optional<float> pixelFilterWidth_;
     std::map<int64_t, SceneData> frames_;
 };
 

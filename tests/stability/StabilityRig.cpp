@@ -193,7 +193,8 @@ const std::vector<std::pair<std::string, Format>>& sourcePorts() {
         {"specular", Format::Float3},       {"diffuseAlbedo", Format::Float3},
         {"specularAlbedo", Format::Float3}, {"normal", Format::Float3},
         {"depth", Format::Float},           {"position", Format::Float3},
-        {"motion", Format::Float2},         {"objectId", Format::Int32}};
+        {"motion", Format::Float2},         {"objectId", Format::Int32},
+        {"jitteredAlbedo", Format::Float3}};
     return ports;
 }
 

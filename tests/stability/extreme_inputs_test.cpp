@@ -97,6 +97,34 @@ TEST(ExtremeInputs, AlbedoZeroUnderNonZeroColour) {
     }
 }
 
+TEST(ExtremeInputs, AntiAliasedAlbedoWithZeroNanAndInf) {
+    // An anti-aliased render (the source offers jitteredAlbedo): svgf.json demodulates by the
+    // albedo averaged over frames. Its samples flicker between two texels every frame, and hold
+    // 0, NaN and +-Inf in single pixels: the average is sanitised and the output stays in the
+    // input's range, the same for 1 and 2 threads. The colour is the sample's albedo times the
+    // plain scene's light (as a renderer's is), so the input spans 0.4x..1.6x the plain range.
+    auto modify = [](int64_t frame, Frame& f) {
+        for (int y = 0; y < 32; ++y)
+            for (int x = 0; x < 48; ++x) {
+                const float a = ((x + y + int(frame)) & 1) ? 0.2f : 0.8f;
+                setRgb(f, "jitteredAlbedo", x, y, a, a, a);
+                setRgb(f, "albedo", x, y, a, a, a);
+                for (int c = 0; c < 3; ++c) f["color"].at(c, x, y) *= 2.f * a;
+            }
+        setRgb(f, "jitteredAlbedo", 4, 4, 0.f, 0.f, 0.f);
+        setRgb(f, "jitteredAlbedo", 9, 6, kNaN, kNaN, kNaN);
+        setRgb(f, "jitteredAlbedo", 20, 9, kInf, -kInf, kInf);
+    };
+    Scenario sc = plainScene({48, 32}, modify);
+    sc.provides.insert("jitteredAlbedo");
+    setScenario("aa-albedo", sc);
+    const TestGraph g = svgfGraph("aa-albedo");
+    const Checked one = runBounded(g, kFrames, 0.f, 1.6f * kPlainHi, 1, "aa-albedo");
+    const Checked two = runBounded(g, kFrames, 0.f, 1.6f * kPlainHi, 2, "aa-albedo");
+    std::printf("anti-aliased albedo: output range [%g, %g]\n", one.worst.min, one.worst.max);
+    EXPECT_TRUE(bitwiseEqual(one.last, two.last)) << "1 vs 2 threads differ";
+}
+
 TEST(ExtremeInputs, BackgroundPixels) {
     // Right quarter is background (depth 1e10, zero normal, id -1, albedo 0) with sky radiance.
     runCase({"background", [](int64_t, Frame& f) {

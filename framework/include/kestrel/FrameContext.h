@@ -22,10 +22,6 @@ struct SceneData {
     Mat4 worldToPixel = Mat4::identity();
     /// Object-to-world matrix per object id (the ids of the objectId image).
     std::map<int32_t, Mat4> objectToWorld;
-    /// The renderer's pixel filter width in pixels where the source states it (Blender's
-    /// camera.json render settings; kestrel.pixelFilterWidth in canonical files), else 0. Wider
-    /// than a pixel: the reference is anti-aliased (filtered over neighbouring surfaces).
-    float pixelFilterWidth = 0.f;
 };
 
 /// Facts about the whole run, for provenance and logging.

@@ -79,15 +79,16 @@ TEST(ExrLoaderDenoisingData, DenoisingNormalRotatedToWorldMatchesNormalPass) {
     TempDir tmp("street-nonormal");
     Channels ch;
     for (const char* c : {"R", "G", "B", "A"})
-        ch[std::string("ViewLayer.Combined.") + c] = readChannel(file, std::string("ViewLayer.Combined.") + c);
+        ch[std::string("ViewLayer.Combined.") + c] =
+            readChannel(file, std::string("ViewLayer.Combined.") + c);
     for (const char* c : {"X", "Y", "Z"})
         ch[std::string("ViewLayer.Denoising Normal.") + c] =
             readChannel(file, std::string("ViewLayer.Denoising Normal.") + c);
     const int w = 320, hgt = 180;
     writeExr(tmp.path / "frame_0005.exr", box2(w, hgt), ch);
     std::filesystem::copy_file(dir + "/camera.json", tmp.path / "camera.json");
-    auto h = PassHarness::make<ExrLoader>({1, 1},
-                                          {{"path", (tmp.path / "frame_####.exr").string()}});
+    auto h =
+        PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / "frame_####.exr").string()}});
     h.useOutputs({"normal"});
     h.ctx.frameNumber = 5;
     h.run();

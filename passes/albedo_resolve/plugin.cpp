@@ -1,7 +1,0 @@
-#include <kestrel/Plugin.h>
-
-#include "AlbedoResolvePass.h"
-
-KESTREL_PLUGIN(r) {
-    r.add<AlbedoResolvePass>();
-}

@@ -1,0 +1,118 @@
+// Point-sampled or anti-aliased: the loader's compile-time decision (PixelJitter.h) and the
+// jitteredAlbedo output it gates.
+#include <OpenEXR/ImfFloatAttribute.h>
+#include <OpenEXR/ImfHeader.h>
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "ExrLoader.h"
+#include "PixelJitter.h"
+#include "exr_test_util.h"
+#include "kestrel/Conventions.h"
+#include "kestrel/testing/PassHarness.h"
+
+using namespace kestrel::exr;
+using kestrel::testing::PassHarness;
+using namespace exrtest;
+
+namespace {
+
+constexpr int W = 64, H = 48;
+
+/// Planar depth of a tilted plane seen at (x + 0.5 + jx, y + 0.5 + jy): 1/z is linear in screen
+/// position. `jitter`: the sub-pixel offsets' half-range (0: pixel centres).
+std::vector<float> planeDepth(float jitter, uint32_t seed = 1) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(-jitter, jitter);
+    std::vector<float> z(size_t(W) * H);
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            const float sx = float(x) + 0.5f + (jitter > 0 ? u(rng) : 0.f);
+            const float sy = float(y) + 0.5f + (jitter > 0 ? u(rng) : 0.f);
+            z[size_t(y) * W + size_t(x)] = 1.f / (0.05f + 0.002f * sx + 0.004f * sy);
+        }
+    return z;
+}
+
+Channels canonicalFrame(const std::vector<float>& depth) {
+    Channels ch;
+    for (const char* c : {"R", "G", "B"}) ch[c].assign(depth.size(), 0.5f);
+    for (const char* c : {"albedo.R", "albedo.G", "albedo.B"}) ch[c].assign(depth.size(), 0.25f);
+    ch["depth.Z"] = depth;
+    return ch;
+}
+
+RecordingResolve resolveLoader(const TempDir& tmp, const Channels& ch, const Imf::Header* attrs,
+                               const std::string& antiAliased = "auto") {
+    writeExr(tmp.path / "f.0001.exr", Imath::Box2i({0, 0}, {W - 1, H - 1}), ch, {}, attrs);
+    auto h = PassHarness::make<ExrLoader>(
+        {1, 1}, {{"path", (tmp.path / "f.####.exr").string()}, {"antiAliased", antiAliased}});
+    RecordingResolve rc(1);
+    h.pass().resolve(rc);
+    return rc;
+}
+
+}  // namespace
+
+TEST(PixelJitter, PixelCentresScoreNearZeroJitteredSamplesNearOne) {
+    const auto centred = planeDepth(0.f), jittered = planeDepth(0.75f);
+    const float c = depthJitterScore(centred.data(), W, H),
+                j = depthJitterScore(jittered.data(), W, H);
+    EXPECT_LT(c, 0.1f * kJitterThreshold) << c;
+    EXPECT_GT(j, 10.f * kJitterThreshold) << j;
+}
+
+TEST(PixelJitter, BackgroundOnlyCannotTell) {
+    std::vector<float> sky(size_t(W) * H, kestrel::kBackgroundDepth);
+    EXPECT_EQ(depthJitterScore(sky.data(), W, H), 0.f);
+}
+
+TEST(PixelJitter, StatedFilterWinsOverTheMeasure) {
+    EXPECT_TRUE(decideAntiAliasing(1.5f, std::nullopt).antiAliased);
+    EXPECT_FALSE(decideAntiAliasing(0.01f, 0.9f).antiAliased);
+    EXPECT_TRUE(decideAntiAliasing(std::nullopt, 0.9f).antiAliased);
+    EXPECT_FALSE(decideAntiAliasing(std::nullopt, 1e-5f).antiAliased);
+    EXPECT_FALSE(decideAntiAliasing(std::nullopt, std::nullopt).antiAliased);
+}
+
+TEST(PixelJitter, LoaderOffersJitteredAlbedoOnlyForAntiAliasedRenders) {
+    TempDir tmp("jitter");
+    // Point-sampled depth, nothing stated: absent, with the measured reason.
+    auto rc = resolveLoader(tmp, canonicalFrame(planeDepth(0.f)), nullptr);
+    ASSERT_EQ(rc.absent.count("jitteredAlbedo"), 1u);
+    EXPECT_NE(rc.absent["jitteredAlbedo"].find("point-sampled render (depth jitter score"),
+              std::string::npos)
+        << rc.absent["jitteredAlbedo"];
+    // Jittered depth: present.
+    rc = resolveLoader(tmp, canonicalFrame(planeDepth(0.75f)), nullptr);
+    EXPECT_EQ(rc.absent.count("jitteredAlbedo"), 0u);
+    // A stated 1.5 px filter decides even over centred depth; the parameter over both.
+    Imf::Header attrs;
+    attrs.insert("kestrel.pixelFilterWidth", Imf::FloatAttribute(1.5f));
+    rc = resolveLoader(tmp, canonicalFrame(planeDepth(0.f)), &attrs);
+    EXPECT_EQ(rc.absent.count("jitteredAlbedo"), 0u);
+    rc = resolveLoader(tmp, canonicalFrame(planeDepth(0.f)), &attrs, "false");
+    EXPECT_EQ(rc.absent.count("jitteredAlbedo"), 1u);
+    rc = resolveLoader(tmp, canonicalFrame(planeDepth(0.f)), nullptr, "true");
+    EXPECT_EQ(rc.absent.count("jitteredAlbedo"), 0u);
+    // Without albedo there is nothing to offer.
+    Channels noAlbedo = canonicalFrame(planeDepth(0.75f));
+    for (const char* c : {"albedo.R", "albedo.G", "albedo.B"}) noAlbedo.erase(c);
+    rc = resolveLoader(tmp, noAlbedo, nullptr);
+    EXPECT_EQ(rc.absent.count("jitteredAlbedo"), 1u);
+}
+
+TEST(PixelJitter, JitteredAlbedoHoldsTheAlbedo) {
+    TempDir tmp("jitter-values");
+    Imf::Header attrs;
+    attrs.insert("kestrel.pixelFilterWidth", Imf::FloatAttribute(2.f));
+    writeExr(tmp.path / "f.0001.exr", Imath::Box2i({0, 0}, {W - 1, H - 1}),
+             canonicalFrame(planeDepth(0.f)), {}, &attrs);
+    auto h = PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / "f.####.exr").string()}});
+    h.useOutputs({"albedo", "jitteredAlbedo"});
+    h.ctx.frameNumber = 1;
+    h.run();
+    EXPECT_EQ(h.out("jitteredAlbedo").at(1, 3, 2), 0.25f);
+    EXPECT_EQ(h.out("albedo").at(1, 3, 2), 0.25f);
+}
