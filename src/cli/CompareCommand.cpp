@@ -51,7 +51,8 @@ int runCompare(const CompareArgs& a) {
             return 2;
         }
         auto plugins = loadPlugins();
-        regions = eval::compareRegions(plugins->registry, a.out, a.ref, a.regions, frames, o.toneMap);
+        regions =
+            eval::compareRegions(plugins->registry, a.out, a.ref, a.regions, frames, o.toneMap);
     }
     if (a.json) {
         nlohmann::json j = eval::toJson(r);
@@ -59,8 +60,9 @@ int runCompare(const CompareArgs& a) {
         std::cout << j.dump(2) << "\n";
     } else {
         std::cout << eval::formatTable(r);
-        if (regions) std::cout << "\nper region (PSNR over the frames; regions from " << a.regions
-                               << "):\n" << eval::formatRegionTable(*regions);
+        if (regions)
+            std::cout << "\nper region (PSNR over the frames; regions from " << a.regions << "):\n"
+                      << eval::formatRegionTable(*regions);
     }
     return 0;
 }

@@ -16,8 +16,8 @@
 namespace kestrel::eval {
 
 const char* regionName(int region) {
-    static const char* names[kRegionCount] = {"all",      "background", "emissive",
-                                              "glossy",   "textured",   "disoccluded"};
+    static const char* names[kRegionCount] = {"all",    "background", "emissive",
+                                              "glossy", "textured",   "disoccluded"};
     return region >= 0 && region < kRegionCount ? names[region] : "?";
 }
 
@@ -77,8 +77,8 @@ RegionMasks classifyRegions(const GBuffer& g, const GBuffer* prev) {
     const size_t n = size_t(g.width) * size_t(g.height);
     RegionMasks m;
     for (auto& v : m) v.assign(n, 0);
-    const bool disocc = prev && !g.motionX.empty() && prev->width == g.width &&
-                        prev->height == g.height;
+    const bool disocc =
+        prev && !g.motionX.empty() && prev->width == g.width && prev->height == g.height;
     for (int y = 0; y < g.height; ++y)
         for (int x = 0; x < g.width; ++x) {
             const size_t i = size_t(y) * size_t(g.width) + size_t(x);
@@ -89,8 +89,8 @@ RegionMasks classifyRegions(const GBuffer& g, const GBuffer* prev) {
             }
             const bool emissive = !g.emissionLum.empty() && g.emissionLum[i] > 1e-3f;
             m[kEmissive][i] = emissive;
-            m[kGlossy][i] = !g.specularLum.empty() && !g.albedoLum.empty() &&
-                            g.specularLum[i] > g.albedoLum[i];
+            m[kGlossy][i] =
+                !g.specularLum.empty() && !g.albedoLum.empty() && g.specularLum[i] > g.albedoLum[i];
             m[kTextured][i] = !emissive && !g.albedoLum.empty() && textured(g, x, y);
             m[kDisoccluded][i] = disocc && !seenBefore(g, *prev, x, y);
         }
@@ -139,8 +139,8 @@ GBufferReader::GBufferReader(const Registry& registry, const std::string& patter
     // First compile: which outputs the scene has (absent ones are listed in the report).
     auto probe = compileGraph(loaderGraph(pattern, {"color"}), registry, copt);
     std::vector<std::string> want;
-    for (const char* o : {"depth", "objectId", "emission", "albedo", "diffuseAlbedo",
-                          "specularAlbedo", "motion"}) {
+    for (const char* o :
+         {"depth", "objectId", "emission", "albedo", "diffuseAlbedo", "specularAlbedo", "motion"}) {
         bool absent = false;
         for (const auto& a : probe->report().absent)
             absent |= a.rfind(std::string("input.") + o + ":", 0) == 0;
@@ -269,9 +269,9 @@ std::string formatRegionTable(const RegionStats& s) {
     char line[160];
     for (int k = 0; k < kRegionCount; ++k) {
         if (!s.has(k)) continue;
-        std::snprintf(line, sizeof line, "%-12s %6.1f%%  %9.2f  %9.2f   %10.3f%s\n",
-                      regionName(k), 100.0 * double(s.samples[size_t(k)]) / all, s.inPsnr(k),
-                      s.outPsnr(k), s.ratio(k), s.ratio(k) > 1.0 ? "  worse than the input" : "");
+        std::snprintf(line, sizeof line, "%-12s %6.1f%%  %9.2f  %9.2f   %10.3f%s\n", regionName(k),
+                      100.0 * double(s.samples[size_t(k)]) / all, s.inPsnr(k), s.outPsnr(k),
+                      s.ratio(k), s.ratio(k) > 1.0 ? "  worse than the input" : "");
         t += line;
     }
     return t;

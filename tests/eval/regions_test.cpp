@@ -1,0 +1,95 @@
+// Regions from the G-buffer (eval/Regions.h) and their error sums.
+#include <eval/Regions.h>
+#include <gtest/gtest.h>
+#include <kestrel/Conventions.h>
+
+using namespace kestrel;
+using namespace kestrel::eval;
+
+namespace {
+
+constexpr int W = 8, H = 4;
+
+/// A flat grey surface of object 1 at depth 5, no motion.
+GBuffer surface() {
+    GBuffer g;
+    g.width = W;
+    g.height = H;
+    const size_t n = size_t(W) * H;
+    g.depth.assign(n, 5.f);
+    g.objectId.assign(n, 1);
+    g.emissionLum.assign(n, 0.f);
+    g.albedoLum.assign(n, 0.5f);
+    g.specularLum.assign(n, 0.f);
+    g.motionX.assign(n, 0.f);
+    g.motionY.assign(n, 0.f);
+    return g;
+}
+
+size_t at(int x, int y) {
+    return size_t(y) * W + size_t(x);
+}
+
+}  // namespace
+
+TEST(Regions, EachRegionFromItsGBufferCue) {
+    GBuffer g = surface();
+    g.depth[at(0, 0)] = kBackgroundDepth;  // sky
+    g.objectId[at(0, 0)] = kBackgroundId;
+    g.emissionLum[at(7, 0)] = 4.f;   // emitter
+    g.specularLum[at(7, 3)] = 0.9f;  // metal: specular brighter than diffuse
+    g.albedoLum[at(4, 2)] = 0.05f;   // a dark texel on the grey surface
+    RegionMasks m = classifyRegions(g, nullptr);
+    EXPECT_TRUE(m[kBackground][at(0, 0)]);
+    EXPECT_FALSE(m[kBackground][at(1, 0)]);
+    EXPECT_TRUE(m[kEmissive][at(7, 0)]);
+    EXPECT_FALSE(m[kTextured][at(7, 0)]);  // emitters are not texture
+    EXPECT_TRUE(m[kGlossy][at(7, 3)]);
+    EXPECT_FALSE(m[kGlossy][at(6, 3)]);
+    EXPECT_TRUE(m[kTextured][at(4, 2)]);
+    EXPECT_TRUE(m[kTextured][at(3, 1)]);   // its neighbours see the edge too
+    EXPECT_FALSE(m[kTextured][at(1, 2)]);  // flat albedo
+    for (size_t i = 0; i < m[kAll].size(); ++i)
+        EXPECT_FALSE(m[kDisoccluded][i]);  // no frame before
+}
+
+TEST(Regions, DisoccludedWhereThePreviousFrameShowsAnotherSurface) {
+    GBuffer prev = surface(), cur = surface();
+    // Another object stood over (3..4, 1..2) last frame.
+    for (int y = 1; y <= 2; ++y)
+        for (int x = 3; x <= 4; ++x) prev.objectId[at(x, y)] = 2;
+    cur.motionX[at(6, 1)] = -8.f;  // comes from off screen
+    RegionMasks m = classifyRegions(cur, &prev);
+    EXPECT_TRUE(m[kDisoccluded][at(6, 1)]);
+    EXPECT_FALSE(m[kDisoccluded][at(6, 2)]);
+    // (3, 1)'s bilinear footprint at (3.5, 1.5) is (3..4, 1..2): object 2 there before.
+    EXPECT_TRUE(m[kDisoccluded][at(3, 1)]);
+    EXPECT_FALSE(m[kDisoccluded][at(5, 2)]);
+}
+
+TEST(Regions, StatsCompareOutputAndInputPerRegion) {
+    GBuffer g = surface();
+    g.depth[at(0, 0)] = kBackgroundDepth;
+    RegionMasks m = classifyRegions(g, nullptr);
+    Image ref(W, H, Format::Float3), out(W, H, Format::Float3), in(W, H, Format::Float3);
+    ref.fill(0.5f);
+    out.fill(0.5f);
+    in.fill(4.f);  // a noisy input everywhere
+    for (int c = 0; c < 3; ++c) {
+        in.at(c, 0, 0) = 0.5f;    // but exact on the sky
+        out.at(c, 0, 0) = 0.f;    // where the output went black
+        out.at(c, 5, 2) = 0.55f;  // and a small error on the surface
+    }
+    RegionStats s;
+    s.add(out.view(), ref.view(), in.view(), m);
+    s.add(out.view(), ref.view(), in.view(), m);
+    ASSERT_TRUE(s.has(kBackground));
+    EXPECT_FALSE(s.has(kEmissive));
+    EXPECT_EQ(s.samples[kBackground], 6u);  // one pixel, three channels, two frames
+    EXPECT_EQ(s.framesWith[kBackground], 2u);
+    EXPECT_GT(s.ratio(kBackground), 1.0);  // worse than the input
+    EXPECT_LT(s.ratio(kAll), 1.0);         // though better overall
+    EXPECT_GT(s.outPsnr(kAll), s.inPsnr(kAll));
+    EXPECT_NE(formatRegionTable(s).find("worse than the input"), std::string::npos);
+    EXPECT_EQ(regionsToJson(s)["background"]["frames"], 2);
+}
