@@ -17,6 +17,24 @@
 
 namespace kestrel::exr {
 
+/// Scan lines per chunk of each compression (OpenEXR's numLinesInBuffer).
+int linesPerChunk(Imf::Compression c) {
+    switch (c) {
+        case Imf::ZIP_COMPRESSION:
+        case Imf::PXR24_COMPRESSION:
+            return 16;
+        case Imf::PIZ_COMPRESSION:
+        case Imf::B44_COMPRESSION:
+        case Imf::B44A_COMPRESSION:
+        case Imf::DWAA_COMPRESSION:
+            return 32;
+        case Imf::DWAB_COMPRESSION:
+            return 256;
+        default:
+            return 1;  // none, RLE, ZIPS (and unknown: the most chunks)
+    }
+}
+
 namespace {
 Box toBox(const Imath::Box2i& b) {
     return {b.min.x, b.min.y, b.max.x, b.max.y};
@@ -159,24 +177,6 @@ constexpr uint64_t kManyChunks = uint64_t(1) << 60;  // saturation: far above an
 
 uint64_t addChunks(uint64_t a, uint64_t b) {
     return b > kManyChunks - std::min(a, kManyChunks) ? kManyChunks : a + b;
-}
-
-/// Scan lines per chunk of each compression (OpenEXR's numLinesInBuffer).
-int linesPerChunk(Imf::Compression c) {
-    switch (c) {
-        case Imf::ZIP_COMPRESSION:
-        case Imf::PXR24_COMPRESSION:
-            return 16;
-        case Imf::PIZ_COMPRESSION:
-        case Imf::B44_COMPRESSION:
-        case Imf::B44A_COMPRESSION:
-        case Imf::DWAA_COMPRESSION:
-            return 32;
-        case Imf::DWAB_COMPRESSION:
-            return 256;
-        default:
-            return 1;  // none, RLE, ZIPS (and unknown: the most chunks)
-    }
 }
 
 /// Chunks of one part (scan-line blocks, or tiles over all levels): the entries of the offset

@@ -19,6 +19,9 @@
 
 namespace kestrel::exr {
 
+/// Scan lines per chunk of a compression (OpenEXR's numLinesInBuffer; 1 for unknown ones).
+int linesPerChunk(Imf::Compression c);
+
 class ExrInput {
 public:
     /// Throws kestrel::Error with a reason (caller adds file and frame): missing, not an EXR,

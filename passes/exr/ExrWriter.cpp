@@ -24,6 +24,7 @@
 #include <tuple>
 #include <utility>
 
+#include "ExrInput.h"
 #include "ZipWriter.h"
 
 namespace kestrel::exr {
@@ -70,28 +71,6 @@ void syncToDisk(const std::string& path, bool folder) {
         throw Error("cannot flush " + path + " to disk: " + std::strerror(err));
 }
 
-/// Lines per chunk of a scan-line file (OpenEXR's numLinesInBuffer for each compressor).
-int linesPerChunk(Imf::Compression c) {
-    switch (c) {
-        case Imf::NO_COMPRESSION:
-        case Imf::RLE_COMPRESSION:
-        case Imf::ZIPS_COMPRESSION:
-            return 1;
-        case Imf::ZIP_COMPRESSION:
-        case Imf::PXR24_COMPRESSION:
-            return 16;
-        case Imf::PIZ_COMPRESSION:
-        case Imf::B44_COMPRESSION:
-        case Imf::B44A_COMPRESSION:
-        case Imf::DWAA_COMPRESSION:
-            return 32;
-        case Imf::DWAB_COMPRESSION:
-            return 256;
-        default:
-            return 0;
-    }
-}
-
 uint64_t readLE(const unsigned char* b, int bytes) {
     uint64_t v = 0;
     for (int i = bytes - 1; i >= 0; --i) v = (v << 8) | b[i];
@@ -105,7 +84,7 @@ uint64_t readLE(const unsigned char* b, int bytes) {
 bool chunksPresent(std::ifstream& f, Imf::StdIFStream& is, const Imf::Header& h, uint64_t size) {
     const int lines = linesPerChunk(h.compression());
     const Imath::Box2i dw = h.dataWindow();
-    if (lines == 0 || dw.max.y < dw.min.y) return false;
+    if (dw.max.y < dw.min.y) return false;
     const uint64_t chunks = (uint64_t(dw.max.y - dw.min.y) + uint64_t(lines)) / uint64_t(lines);
     const uint64_t table = is.tellg();
     if (table + chunks * 8 > size) return false;

@@ -11,15 +11,6 @@ constexpr float kInvPi = 1.f / kPi;
 constexpr float kRayOffset = 1e-4f;
 constexpr float kPickAreaLight = 0.75f;  // probability of sampling the ceiling light in NEE
 
-// Orthonormal basis around n (Duff et al., "Building an Orthonormal Basis, Revisited", JCGT 2017).
-void basis(V3 n, V3& t, V3& b) {
-    const float sign = std::copysign(1.f, n.z);
-    const float a = -1.f / (sign + n.z);
-    const float c = n.x * n.y * a;
-    t = {1.f + sign * n.x * n.x * a, sign * c, -sign * n.x};
-    b = {c, sign + n.y * n.y * a, -n.y};
-}
-
 V3 cosineSample(V3 n, float u1, float u2) {
     V3 t, b;
     basis(n, t, b);

@@ -47,12 +47,7 @@ FrameAovs renderFrame(const SceneOptions& opt, int frame) {
     f.width = w;
     f.height = h;
     f.frame = frame;
-    alloc(f.color, n), alloc(f.albedo, n), alloc(f.emission, n), alloc(f.direct, n);
-    alloc(f.indirect, n), alloc(f.normal, n), alloc(f.position, n), alloc(f.motion, n);
-    alloc(f.diffuse, n), alloc(f.diffuseAlbedo, n), alloc(f.specular, n),
-        alloc(f.specularAlbedo, n);
-    f.depth.assign(n, kBackgroundDepth);
-    f.objectId.assign(n, kBackgroundId);
+    allocFrame(f, n);
     f.worldToCamera = cur.camera.worldToCamera;
     f.projection = cur.camera.projection;
     f.worldToPixel = cur.camera.worldToPixel;

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "VecMath.h"
+#include "scenegen/SceneGen.h"
 
 namespace kestrel::scenegen {
 
@@ -43,6 +44,16 @@ inline void set3(std::array<std::vector<float>, 3>& img, size_t k, V3 v) {
 template <size_t N>
 void alloc(std::array<std::vector<float>, N>& img, size_t n) {
     for (auto& c : img) c.assign(n, 0.f);
+}
+
+/// Every AOV plane of a frame, at the background's values.
+inline void allocFrame(FrameAovs& f, size_t n) {
+    alloc(f.color, n), alloc(f.albedo, n), alloc(f.emission, n), alloc(f.direct, n);
+    alloc(f.indirect, n), alloc(f.normal, n), alloc(f.position, n), alloc(f.motion, n);
+    alloc(f.diffuse, n), alloc(f.diffuseAlbedo, n), alloc(f.specular, n),
+        alloc(f.specularAlbedo, n);
+    f.depth.assign(n, kBackgroundDepth);
+    f.objectId.assign(n, kBackgroundId);
 }
 
 }  // namespace kestrel::scenegen

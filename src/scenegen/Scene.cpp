@@ -55,20 +55,6 @@ AxisQuad quad(int axis, float c, float u0, float u1, float v0, float v1, V3 n, i
     return {axis, ua, va, c, u0, u1, v0, v1, n, id};
 }
 
-bool hitSphere(const SphereObj& sp, const Ray& r, float tMax, float& t) {
-    const V3 oc = r.o - sp.center;
-    const float b = dot(oc, r.d);
-    const float c = dot(oc, oc) - sp.radius * sp.radius;
-    const float disc = b * b - c;
-    if (disc < 0.f) return false;
-    const float sq = std::sqrt(disc);
-    float tt = -b - sq;
-    if (tt <= 0.f) tt = -b + sq;
-    if (tt <= 0.f || tt >= tMax) return false;
-    t = tt;
-    return true;
-}
-
 bool hitQuad(const AxisQuad& q, const Ray& r, float tMax, float& t) {
     const float tt = (q.c - comp(r.o, q.axis)) * comp(r.invD, q.axis);
     if (!(tt > 0.f && tt < tMax)) return false;
@@ -124,6 +110,20 @@ bool hitBox(const BoxObj& b, const Ray& r, float tMax, float& t, V3* localN, V3*
 }
 
 }  // namespace
+
+bool hitSphere(const SphereObj& sp, const Ray& r, float tMax, float& t) {
+    const V3 oc = r.o - sp.center;
+    const float b = dot(oc, r.d);
+    const float c = dot(oc, oc) - sp.radius * sp.radius;
+    const float disc = b * b - c;
+    if (disc < 0.f) return false;
+    const float sq = std::sqrt(disc);
+    float tt = -b - sq;
+    if (tt <= 0.f) tt = -b + sq;
+    if (tt <= 0.f || tt >= tMax) return false;
+    t = tt;
+    return true;
+}
 
 Camera lookAtCamera(V3 pos, V3 target, int width, int height) {
     return makeCamera(pos, target, width, height);

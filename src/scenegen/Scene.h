@@ -56,6 +56,9 @@ struct SphereObj {
     float radius;
     int id;
 };
+/// The nearest hit in (0, tMax) of a ray with a sphere, into t.
+bool hitSphere(const SphereObj& sp, const Ray& r, float tMax, float& t);
+
 struct BoxObj {
     Mat4 toWorld, toLocal;
     V3 half;

@@ -41,19 +41,6 @@ bool inside(const StreetBox& b, V3 p) {
            p.z < b.hi.z;
 }
 
-bool hitSphereStreet(const SphereObj& sp, const Ray& r, float tMax, float& t) {
-    const V3 oc = r.o - sp.center;
-    const float b = dot(oc, r.d);
-    const float disc = b * b - (dot(oc, oc) - sp.radius * sp.radius);
-    if (disc < 0.f) return false;
-    const float sq = std::sqrt(disc);
-    float tt = -b - sq;
-    if (tt <= 0.f) tt = -b + sq;
-    if (tt <= 0.f || tt >= tMax) return false;
-    t = tt;
-    return true;
-}
-
 Camera streetCamera(const SceneOptions& opt, int frame) {
     const float t = opt.staticCamera ? 0.f : float(frame - 1);
     if (opt.cameraCutFrame >= 0 && frame >= opt.cameraCutFrame) {
@@ -194,7 +181,7 @@ bool intersectStreet(const StreetState& s, const Ray& r, float tMax, Hit& hit) {
             if (hitAabb(b, r, best, t, axis)) best = t, box = &b, bestAxis = axis;
     }
     for (const SphereObj& sp : s.spheres)
-        if (hitSphereStreet(sp, r, best, t)) best = t, sphere = &sp, box = nullptr;
+        if (hitSphere(sp, r, best, t)) best = t, sphere = &sp, box = nullptr;
     if (!box && !sphere) return false;
     hit.t = best;
     const V3 p = r.o + r.d * best;
@@ -224,7 +211,7 @@ bool occludedStreet(const StreetState& s, const Ray& r, float tMax) {
         for (const StreetBox& b : s.fence)
             if (hitAabb(b, r, tMax, t, axis)) return true;
     for (const SphereObj& sp : s.spheres)
-        if (hitSphereStreet(sp, r, tMax, t)) return true;
+        if (hitSphere(sp, r, tMax, t)) return true;
     return false;
 }
 

@@ -17,15 +17,6 @@ constexpr float kPi = 3.14159265358979f;
 constexpr float kInvPi = 1.f / kPi;
 constexpr float kRayOffset = 1e-4f;
 
-// Orthonormal basis around n (Duff et al., JCGT 2017).
-void basis(V3 n, V3& t, V3& b) {
-    const float sign = std::copysign(1.f, n.z);
-    const float a = -1.f / (sign + n.z);
-    const float c = n.x * n.y * a;
-    t = {1.f + sign * n.x * n.x * a, sign * c, -sign * n.x};
-    b = {c, sign + n.y * n.y * a, -n.y};
-}
-
 // Direction at angle acos(cosT) from `axis`, azimuth 2 pi u.
 V3 aroundAxis(V3 axis, float cosT, float u) {
     V3 t, b;
@@ -254,15 +245,6 @@ std::array<float, 2> sampleMotion(const StreetState& cur, const StreetState& pre
     const V3 q = xformPoint(w2p, pPrev, &pw);
     if (pw <= 1e-6f) return {0.f, 0.f};
     return {q.x / pw - pr.px, q.y / pw - pr.py};
-}
-
-void allocFrame(FrameAovs& f, size_t n) {
-    alloc(f.color, n), alloc(f.albedo, n), alloc(f.emission, n), alloc(f.direct, n);
-    alloc(f.indirect, n), alloc(f.normal, n), alloc(f.position, n), alloc(f.motion, n);
-    alloc(f.diffuse, n), alloc(f.diffuseAlbedo, n), alloc(f.specular, n),
-        alloc(f.specularAlbedo, n);
-    f.depth.assign(n, kBackgroundDepth);
-    f.objectId.assign(n, kBackgroundId);
 }
 
 void writeGBuffer(FrameAovs& f, size_t k, const Camera& cam, const Primary& pr) {

@@ -87,4 +87,13 @@ inline Mat4 rigidInverse(const Mat4& m) {
     return r;
 }
 
+// Orthonormal basis around n (Duff et al., "Building an Orthonormal Basis, Revisited", JCGT 2017).
+inline void basis(V3 n, V3& t, V3& b) {
+    const float sign = std::copysign(1.f, n.z);
+    const float a = -1.f / (sign + n.z);
+    const float c = n.x * n.y * a;
+    t = {1.f + sign * n.x * n.x * a, sign * c, -sign * n.x};
+    b = {c, sign + n.y * n.y * a, -n.y};
+}
+
 }  // namespace kestrel::scenegen
