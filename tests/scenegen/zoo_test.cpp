@@ -9,6 +9,8 @@
 #include <iostream>
 #include <set>
 
+#include "Expectation.h"
+
 using namespace kestrel::scenegen;
 
 namespace {
@@ -345,33 +347,7 @@ TEST(SceneZoo, StreetReferenceIsTheExpectationOfTheOneSppFrames) {
     o.staticCamera = true;
     o.movingObject = false;
     o.referenceSpp = 256;
-    const int frames = 256;
-    const size_t n = size_t(o.width) * size_t(o.height);
-    std::vector<double> sum(3 * n, 0.0), sum2(3 * n, 0.0);
-    for (int t = 1; t <= frames; ++t) {
-        const FrameAovs f = renderFrame(o, t);
-        for (int c = 0; c < 3; ++c)
-            for (size_t k = 0; k < n; ++k) {
-                sum[c * n + k] += f.color[c][k];
-                sum2[c * n + k] += double(f.color[c][k]) * f.color[c][k];
-            }
-    }
-    const std::vector<float> ref = renderReference(o, 1);
-    double meanNoisy = 0, meanRef = 0, z2 = 0;
-    int zCount = 0;
-    for (size_t k = 0; k < 3 * n; ++k) {
-        const double mean = sum[k] / frames;
-        const double var = std::max(0.0, sum2[k] / frames - mean * mean);
-        meanNoisy += mean;
-        meanRef += ref[k];
-        const double sigma2 = var / frames + var / o.referenceSpp;
-        if (sigma2 > 1e-12) {
-            z2 += (mean - ref[k]) * (mean - ref[k]) / sigma2;
-            ++zCount;
-        }
-    }
-    const double relBias = std::fabs(meanNoisy - meanRef) / meanRef;
-    const double zRms = std::sqrt(z2 / std::max(zCount, 1));
+    const auto [relBias, zRms] = scenegentest::referenceAgainstFrameMean(o, 256);
     // Measured: image means differ by 0.04 %, per-pixel normalised error RMS 1.21 (heavy tails
     // near the lamp and the sun glints; sigma counts the frames' variance for the reference too,
     // which is less noisy there, so an unbiased pair gives about 1).
