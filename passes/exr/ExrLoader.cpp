@@ -324,6 +324,7 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
     }
 
     ChannelSets sets;
+    std::unique_ptr<ExrInput> probed;  // the first file (single-file layouts)
     if (games202) {
         plan_.layout = Layout::Games202;
         for (const char* role : kGames202Roles) {
@@ -346,7 +347,7 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
         note(games202Matrices_ ? "camera and object matrices from " + mat
                                : "no matrix file " + mat + ": no camera matrices");
     } else {
-        std::unique_ptr<ExrInput> in;
+        std::unique_ptr<ExrInput>& in = probed;
         try {
             in = std::make_unique<ExrInput>(firstPath, maxPixels_);
         } catch (const Error& e) {
@@ -398,36 +399,42 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
     }
     std::set<std::string> overridden;
     if (!channelsParam_.empty()) overridden = applyChannelOverrides(plan_, channelsParam_, sets);
-    if (!overridden.count("jitteredAlbedo")) planAntiAliasing(firstPath);
+    if (!overridden.count("jitteredAlbedo")) planAntiAliasing(probed.get());
     note(std::string("layout ") + layoutName(plan_.layout) + " (" + firstPath + ")");
     for (const auto& r : plan_.recipes)
         if (!r.absent) note(r.output + " = " + r.why);
     planned_ = true;
 }
 
-std::optional<float> ExrLoader::statedFilterWidth(const std::string& firstPath) const {
+std::optional<float> ExrLoader::statedFilterWidth(const ExrInput* first) const {
     if (plan_.layout == Layout::Blender)
         return cameras_ ? cameras_->pixelFilterWidth() : std::nullopt;
-    if (plan_.layout != Layout::Canonical) return std::nullopt;
-    ExrInput in(firstPath, maxPixels_);
-    const auto* a = in.header().findTypedAttribute<Imf::FloatAttribute>("kestrel.pixelFilterWidth");
+    if (!first) return std::nullopt;
+    const auto* a =
+        first->header().findTypedAttribute<Imf::FloatAttribute>("kestrel.pixelFilterWidth");
     if (!a || !std::isfinite(a->value())) return std::nullopt;
     return std::max(0.f, a->value());
 }
 
-std::optional<float> ExrLoader::measureDepthJitter(const std::string& firstPath) const {
+std::optional<float> ExrLoader::measureDepthJitter(ExrInput* first) const {
     const Recipe& depth = *plan_.find("depth");
-    if (depth.absent || !depth.isDirect() || !depth.terms[0][0][0].file.empty())
+    if (!first || depth.absent || !depth.isDirect() || !depth.terms[0][0][0].file.empty())
         return std::nullopt;
-    ExrInput in(firstPath, maxPixels_);
-    const Box dp = in.displayWindow();
+    const Box dp = first->displayWindow();
     const int W = int(dp.width()), H = int(dp.height());
     std::vector<float> z(size_t(W) * size_t(H));
-    readChannels(in, dp, W, z.size(), {{depth.terms[0][0][0].name, z.data()}}, {depth.fill}, 1);
+    try {
+        readChannels(*first, dp, W, z.size(), {{depth.terms[0][0][0].name, z.data()}}, {depth.fill},
+                     1);
+    } catch (const std::exception&) {
+        // Damaged pixels cannot be measured; the frame reports its damage when it is read
+        // (a FrameError, which --skip-bad-frames skips), not the compile.
+        return std::nullopt;
+    }
     return depthJitterScore(z.data(), W, H);
 }
 
-void ExrLoader::planAntiAliasing(const std::string& firstPath) {
+void ExrLoader::planAntiAliasing(ExrInput* first) {
     Recipe& out = *plan_.find("jitteredAlbedo");
     const Recipe& albedo = *plan_.find("albedo");
     auto absent = [&](std::string why) {
@@ -440,8 +447,8 @@ void ExrLoader::planAntiAliasing(const std::string& firstPath) {
     if (antiAliasedParam_ != "auto") {
         aa = {antiAliasedParam_ == "true", "antiAliased parameter " + antiAliasedParam_};
     } else {
-        const auto stated = statedFilterWidth(firstPath);
-        aa = decideAntiAliasing(stated, stated ? std::nullopt : measureDepthJitter(firstPath));
+        const auto stated = statedFilterWidth(first);
+        aa = decideAntiAliasing(stated, stated ? std::nullopt : measureDepthJitter(first));
     }
     if (!aa.antiAliased) return absent(aa.why);
     out.terms = albedo.terms;

@@ -44,9 +44,11 @@ private:
     ExrInput& openRole(const std::string& role, int64_t frame);
     void fillScene(int64_t frame, SceneData& scene);
     /// jitteredAlbedo: the albedo's recipe where the render is anti-aliased (PixelJitter.h).
-    void planAntiAliasing(const std::string& firstPath);
-    std::optional<float> statedFilterWidth(const std::string& firstPath) const;
-    std::optional<float> measureDepthJitter(const std::string& firstPath) const;
+    /// `first`: the probed first file (null for GAMES202), read again for its depth only when
+    /// the render does not state its pixel filter.
+    void planAntiAliasing(ExrInput* first);
+    std::optional<float> statedFilterWidth(const ExrInput* first) const;
+    std::optional<float> measureDepthJitter(ExrInput* first) const;
 
     /// Decoded file channels of one frame, read ahead on a background thread while the graph
     /// computes the frame before it (parameter "prefetch").

@@ -48,7 +48,8 @@ AntiAliasing decideAntiAliasing(std::optional<float> stated, std::optional<float
                       double(kJitterThreshold));
         return {aa, why};
     }
-    return {false, "point-sampled render assumed (no stated pixel filter and no depth to measure)"};
+    return {false,
+            "point-sampled render assumed (no stated pixel filter, no readable depth to measure)"};
 }
 
 }  // namespace kestrel::exr
