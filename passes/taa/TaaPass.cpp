@@ -35,6 +35,7 @@ inline Ycc toYcc(float r, float g, float b) {
 struct Params {
     float alpha, gamma;
     bool clip, antiFlicker;
+    float blurAlpha;  ///< the current frame's weight where resampleBlur is 1
 };
 
 // One pixel's TAA from its YCoCg colour c, 3x3 neighbourhood sums s1 = sum(q - c),
@@ -44,7 +45,8 @@ struct Params {
 template <bool Interior>
 __attribute__((always_inline)) inline void resolvePixel(const Params& p, const float c[3],
                                                         const float s1[3], const float s2[3],
-                                                        float n, float hv[3], float res[3]) {
+                                                        float n, float blur, float hv[3],
+                                                        float res[3]) {
     float mu[3], lo[3], hi[3];
     for (int ch = 0; ch < 3; ++ch) {
         const float m1 = s1[ch] / n;
@@ -74,7 +76,12 @@ __attribute__((always_inline)) inline void resolvePixel(const Params& p, const f
     } else {
         for (int ch = 0; ch < 3; ++ch) hv[ch] = std::clamp(hv[ch], lo[ch], hi[ch]);
     }
-    float wc = p.alpha, wh = 1.f - p.alpha;
+    // History resampled between pixel centres is blurred (Karis 2014): its weight falls with
+    // the blur the reprojection reports, to blurAlpha's share where it is largest.
+    // NaN and values outside [0, 1] (a user's own wiring) count as 0 and 1.
+    const float b = blur > 0.f ? std::min(blur, 1.f) : 0.f;
+    const float alpha = std::fma(b, p.blurAlpha - p.alpha, p.alpha);
+    float wc = alpha, wh = 1.f - alpha;
     if (p.antiFlicker) {
         wc /= 1.f + std::max(0.f, c[0]);
         wh /= 1.f + std::max(0.f, hv[0]);
@@ -111,6 +118,7 @@ struct RowIo {
     const float *cr, *cg, *cb;  ///< this row's colour
     const float *hr, *hg, *hb;  ///< this row's history
     const float* len;           ///< this row's history length, or null (interior: ones)
+    const float* blur;          ///< this row's resampling blur, or null (interior: zeros)
     float *o0, *o1, *o2;
 };
 
@@ -118,12 +126,13 @@ struct RowIo {
 // 3x3 window and selects, vectorised by the compiler across x.
 template <bool Clip, bool AntiFlicker>
 void interiorRow(int w, const RowIo& io, const Params& prm) {
-    const Params p{prm.alpha, prm.gamma, Clip, AntiFlicker};
+    const Params p{prm.alpha, prm.gamma, Clip, AntiFlicker, prm.blurAlpha};
     const float *y0 = io.ycc[0][0], *y1 = io.ycc[0][1], *y2 = io.ycc[0][2];
     const float *a0 = io.ycc[1][0], *a1 = io.ycc[1][1], *a2 = io.ycc[1][2];
     const float *b0 = io.ycc[2][0], *b1 = io.ycc[2][1], *b2 = io.ycc[2][2];
     const float *cr = io.cr, *cg = io.cg, *cb = io.cb, *hr = io.hr, *hg = io.hg, *hb = io.hb;
     const float* len = io.len;
+    const float* blur = io.blur;
     float *o0 = io.o0, *o1 = io.o1, *o2 = io.o2;
     constexpr float kFinite = std::numeric_limits<float>::max();
 #pragma GCC ivdep
@@ -153,7 +162,7 @@ void interiorRow(int w, const RowIo& io, const Params& prm) {
                            (std::fabs(hg[x]) <= kFinite) & (std::fabs(hb[x]) <= kFinite);
         const Ycc v = toYcc(sanitise(hr[x]), sanitise(hg[x]), sanitise(hb[x]));
         float hv[3] = {v.y, v.co, v.cg}, res[3];
-        resolvePixel<true>(p, c, s1, s2, 9.f, hv, res);
+        resolvePixel<true>(p, c, s1, s2, 9.f, blur[x], hv, res);
         float r, g, b;
         fromYcc(res, r, g, b);
         o0[x] = valid ? r : sanitise(cr[x]);
@@ -194,7 +203,7 @@ void borderPixel(int x, int w, int ya, int yb, int y, const RowIo& io, const Par
         s1[ch] = a1;
         s2[ch] = a2;
     }
-    resolvePixel<false>(p, c, s1, s2, n, hv, res);
+    resolvePixel<false>(p, c, s1, s2, n, io.blur ? io.blur[x] : 0.f, hv, res);
     fromYcc(res, io.o0[x], io.o1[x], io.o2[x]);
 }
 
@@ -213,7 +222,20 @@ PassDesc TaaPass::describe() {
         .optionalInput("historyLength", Format::Float,
                        "reprojection validity: 0 where disoccluded (history dropped there)")
         .output("color", Format::Float3, "anti-aliased colour (feed back through a history edge)")
+        .optionalInput("resampleBlur", Format::Float,
+                       "how much resampling blurred the history, in [0, 1] (Reprojection's "
+                       "resampleBlur): the current frame's weight rises towards blurAlpha with it")
+        .optionalInput("antiAliased", Format::Any,
+                       "bound only where the render is anti-aliased (the loader's jitteredAlbedo); "
+                       "never read: its presence selects jitteredBlurAlpha at compile time")
         .paramFloat("alpha", 0.1, 0.0, 1.0, "weight of the current frame in the blend")
+        .paramFloat("blurAlpha", 1.0, 0.0, 1.0,
+                    "weight of the current frame where the history was resampled midway between "
+                    "pixels (resampleBlur 1), on a point-sampled render: there the history "
+                    "cannot add detail, only blur it")
+        .paramFloat("jitteredBlurAlpha", 0.4, 0.0, 1.0,
+                    "blurAlpha on an anti-aliased render (antiAliased bound): there the history "
+                    "is the anti-aliasing, and the reference is itself filtered")
         .paramFloat("gamma", 1.0, 0.0, 100.0,
                     "neighbourhood box half-width in standard deviations (variance clipping)")
         .paramEnum("mode", "clip", {"clip", "clamp"},
@@ -227,9 +249,17 @@ TaaPass::TaaPass(const ParamValues& params)
     : alpha_(params.getFloat("alpha")),
       gamma_(params.getFloat("gamma")),
       clip_(params.getString("mode") == "clip"),
-      antiFlicker_(params.getBool("antiFlicker")) {}
+      antiFlicker_(params.getBool("antiFlicker")),
+      blurAlpha_(params.getFloat("blurAlpha")),
+      jitteredBlurAlpha_(params.getFloat("jitteredBlurAlpha")) {}
 
 void TaaPass::resolve(ResolveContext& rc) {
+    antiAliased_ = rc.isBound("antiAliased");
+    if (antiAliased_) {
+        rc.ignoreInput("antiAliased", "a flag, never read");
+        rc.note("anti-aliased render: history resampled between pixels keeps weight " +
+                std::to_string(1.f - jitteredBlurAlpha_));
+    }
     if (!rc.isBound("history")) {
         rc.forward("color", "color");
         rc.note("no history bound: TAA passes the current colour through");
@@ -242,7 +272,9 @@ void TaaPass::execute(FrameContext& ctx, PassIO& io) {
     const int w = cur.width(), h = cur.height();
     const ImageView* hist = io.hasInput("history") ? &io.input("history") : nullptr;
     const ImageView* len = io.hasInput("historyLength") ? &io.input("historyLength") : nullptr;
-    const Params prm{alpha_, gamma_, clip_, antiFlicker_};
+    const ImageView* blur = io.hasInput("resampleBlur") ? &io.input("resampleBlur") : nullptr;
+    const Params prm{alpha_, gamma_, clip_, antiFlicker_,
+                     antiAliased_ ? jitteredBlurAlpha_ : blurAlpha_};
 
     ctx.parallelRows(h, [&](int ya, int yb) {
         if (!hist) {  // no history: exactly the current colour
@@ -257,9 +289,11 @@ void TaaPass::execute(FrameContext& ctx, PassIO& io) {
         // YCoCg of rows y-1, y, y+1 in a ring of three row slots (each chunk converts its
         // rows and the two beside it: no full-frame buffer).
         std::vector<float>& ring = tYcc;
-        if (ring.size() < size_t(w) * 10) ring.resize(size_t(w) * 10);
+        if (ring.size() < size_t(w) * 11) ring.resize(size_t(w) * 11);
         float* ones = ring.data() + size_t(w) * 9;  // the history length when not fed
         std::fill(ones, ones + w, 1.f);
+        float* zeros = ones + w;  // the resampling blur when not fed
+        std::fill(zeros, zeros + w, 0.f);
         auto slot = [&](int row, int ch) { return ring.data() + (size_t(row % 3) * 3 + ch) * w; };
         auto convert = [&](int row) {
             yccRow(w, cur.row(0, row), cur.row(1, row), cur.row(2, row), slot(row, 0), slot(row, 1),
@@ -283,6 +317,7 @@ void TaaPass::execute(FrameContext& ctx, PassIO& io) {
             r.hg = hist->row(1, y);
             r.hb = hist->row(2, y);
             r.len = len ? len->row(0, y) : nullptr;
+            r.blur = blur ? blur->row(0, y) : nullptr;
             r.o0 = out.row(0, y);
             r.o1 = out.row(1, y);
             r.o2 = out.row(2, y);
@@ -292,6 +327,7 @@ void TaaPass::execute(FrameContext& ctx, PassIO& io) {
             }
             borderPixel(0, w, ra, rb, y, r, prm);
             if (!r.len) r.len = ones;  // 1 > 0: valid, as without the input
+            if (!r.blur) r.blur = zeros;
             if (prm.clip)
                 prm.antiFlicker ? interiorRow<true, true>(w, r, prm)
                                 : interiorRow<true, false>(w, r, prm);

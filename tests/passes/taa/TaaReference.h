@@ -18,6 +18,7 @@ using namespace kestrel;
 struct Params {
     float alpha = 0.1f, gamma = 1.f;
     bool clip = true, antiFlicker = true;
+    float blurAlpha = 1.f;  ///< alpha where resampleBlur is 1
 };
 
 inline float sanitise(float v) {
@@ -25,8 +26,9 @@ inline float sanitise(float v) {
     return v == v ? std::clamp(v, -kMaxValue, kMaxValue) : 0.f;
 }
 
-/// history / historyLength: null when not bound. Returns the Float3 output.
-inline Image taa(const Image& cur, const Image* hist, const Image* len, const Params& p) {
+/// history / historyLength / blur (resampleBlur): null when not bound. Returns the Float3 output.
+inline Image taa(const Image& cur, const Image* hist, const Image* len, const Params& p,
+                 const Image* blur = nullptr) {
     const int w = cur.width(), h = cur.height();
     Image out(w, h, Format::Float3);
     auto ycc = [&](int x, int y, float v[3]) {
@@ -88,7 +90,10 @@ inline Image taa(const Image& cur, const Image* hist, const Image* len, const Pa
             } else {
                 for (int ch = 0; ch < 3; ++ch) hv[ch] = std::clamp(hv[ch], lo[ch], hi[ch]);
             }
-            float wc = p.alpha, wh = 1.f - p.alpha;
+            float b = blur ? blur->at(0, x, y) : 0.f;
+            b = b > 0.f ? std::min(b, 1.f) : 0.f;  // NaN counts as 0
+            const float alpha = std::fma(b, p.blurAlpha - p.alpha, p.alpha);
+            float wc = alpha, wh = 1.f - alpha;
             if (p.antiFlicker) {
                 wc /= 1.f + std::max(0.f, c[0]);
                 wh /= 1.f + std::max(0.f, hv[0]);

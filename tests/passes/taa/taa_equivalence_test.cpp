@@ -19,11 +19,12 @@ using kestrel::testing::PassHarness;
 namespace {
 
 struct Inputs {
-    Image cur, hist, len;
+    Image cur, hist, len, blur;
 };
 
 Inputs randomInputs(int w, int h, unsigned seed, float extremeFraction) {
-    Inputs in{Image(w, h, Format::Float3), Image(w, h, Format::Float3), Image(w, h, Format::Float)};
+    Inputs in{Image(w, h, Format::Float3), Image(w, h, Format::Float3), Image(w, h, Format::Float),
+              Image(w, h, Format::Float)};
     std::mt19937 rng(seed);
     std::uniform_real_distribution<float> u(0.f, 1.f);
     const float vals[] = {std::numeric_limits<float>::quiet_NaN(),
@@ -53,6 +54,8 @@ Inputs randomInputs(int w, int h, unsigned seed, float extremeFraction) {
     for (size_t i = 0; i < in.len.extent().pixels(); ++i) {
         const float r = u(rng);
         in.len.channel(0)[i] = r < 0.1f ? 0.f : r < 0.12f ? -1.f : r < 0.13f ? NAN : 1.f;
+        const float b = u(rng);  // resampleBlur: [0, 1], and what a user's wiring may bring
+        in.blur.channel(0)[i] = b < 0.05f ? NAN : b < 0.1f ? -2.f : b < 0.15f ? 7.f : u(rng);
     }
     return in;
 }
@@ -69,23 +72,26 @@ Inputs randomInputs(int w, int h, unsigned seed, float extremeFraction) {
 }
 
 void expectEquivalent(const Inputs& in, bool withHist, bool withLen, const taaref::Params& p,
-                      int threads, const std::string& what) {
+                      int threads, const std::string& what, bool withBlur = false) {
     SCOPED_TRACE(what + " hist " + std::to_string(withHist) + " len " + std::to_string(withLen) +
                  " alpha " + std::to_string(p.alpha) + " gamma " + std::to_string(p.gamma) +
                  " clip " + std::to_string(p.clip) + " antiFlicker " +
-                 std::to_string(p.antiFlicker) + " threads " + std::to_string(threads));
+                 std::to_string(p.antiFlicker) + " threads " + std::to_string(threads) + " blur " +
+                 std::to_string(withBlur) + " blurAlpha " + std::to_string(p.blurAlpha));
     auto h = PassHarness::make<TaaPass>(in.cur.extent(),
                                         {{"alpha", double(p.alpha)},
                                          {"gamma", double(p.gamma)},
                                          {"mode", std::string(p.clip ? "clip" : "clamp")},
-                                         {"antiFlicker", p.antiFlicker}},
+                                         {"antiFlicker", p.antiFlicker},
+                                         {"blurAlpha", double(p.blurAlpha)}},
                                         threads);
     h.bind("color", in.cur);
     if (withHist) h.bind("history", in.hist);
     if (withLen) h.bind("historyLength", in.len);
+    if (withBlur) h.bind("resampleBlur", in.blur);
     h.run();
-    const Image ref =
-        taaref::taa(in.cur, withHist ? &in.hist : nullptr, withLen ? &in.len : nullptr, p);
+    const Image ref = taaref::taa(in.cur, withHist ? &in.hist : nullptr,
+                                  withLen ? &in.len : nullptr, p, withBlur ? &in.blur : nullptr);
     EXPECT_TRUE(sameBits(h.out("color"), ref));
 }
 
@@ -107,6 +113,14 @@ void expectEquivalentAll(const Inputs& in, const std::string& what) {
             p.alpha = alpha;
             p.gamma = gamma;
             expectEquivalent(in, true, true, p, 2, what);
+        }
+    for (bool clip : {true, false})
+        for (float blurAlpha : {1.f, 0.f, 0.4f}) {
+            taaref::Params q;
+            q.clip = clip;
+            q.blurAlpha = blurAlpha;
+            expectEquivalent(in, true, true, q, 2, what, true);
+            expectEquivalent(in, true, false, q, 1, what, true);
         }
 }
 

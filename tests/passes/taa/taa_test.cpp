@@ -2,6 +2,7 @@
 // rejection of outlier history, noise reduction, stiff inputs, thread-count independence.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -219,4 +220,73 @@ TEST(Taa, OneAndTwoThreadsIdentical) {
         h->run();
     }
     EXPECT_EQ(maxAbsDiff(h1.out("color"), h2.out("color")), 0.f);
+}
+
+// History resampled between pixel centres (Reprojection's resampleBlur) is weighted down: at
+// blur 1 with blurAlpha 1 the output is the current colour, at blur 0 the pass is bit for bit
+// the one without the input, and in between the history's share lies between the two.
+TEST(Taa, BlurredHistoryIsWeightedDown) {
+    const Image cur = texture(16, 16);
+    Image hist(cur.extent(), Format::Float3), blur(cur.extent(), Format::Float);
+    hist.fill(0.45f);
+    auto runWith = [&](const Image* b) {
+        auto h = PassHarness::make<TaaPass>(cur.extent(), {{"gamma", 100.0}});
+        h.bind("color", cur);
+        h.bind("history", hist);
+        if (b) h.bind("resampleBlur", *b);
+        h.run();
+        return copyOf(h.out("color"));
+    };
+    const Image without = runWith(nullptr);
+    blur.fill(0.f);
+    EXPECT_EQ(maxAbsDiff(runWith(&blur), without), 0.f);
+    blur.fill(1.f);
+    EXPECT_LT(maxAbsDiff(runWith(&blur), cur), 1e-6f);
+    blur.fill(0.5f);
+    const double half = meanAbsDiff(runWith(&blur), cur), full = meanAbsDiff(without, cur);
+    EXPECT_GT(half, 0.05 * full);
+    EXPECT_LT(half, 0.7 * full);
+}
+
+namespace {
+
+/// The compile-time view of one pass: which inputs are bound, what it ignores.
+struct StubResolve : ResolveContext {
+    std::vector<std::string> bound, ignored;
+    bool isBound(std::string_view in) const override {
+        return std::find(bound.begin(), bound.end(), in) != bound.end();
+    }
+    void forward(std::string_view, std::string_view) override {}
+    void setAbsent(std::string_view, std::string) override {}
+    void ignoreInput(std::string_view in, std::string) override { ignored.emplace_back(in); }
+    void note(std::string) override {}
+    int64_t firstFrame() const override { return 1; }
+    std::string_view passName() const override { return "taa"; }
+};
+
+}  // namespace
+
+// On an anti-aliased render (antiAliased bound) the history keeps jitteredBlurAlpha's weight
+// where it was resampled between pixels; antiAliased itself is never read.
+TEST(Taa, AntiAliasedRenderKeepsResampledHistory) {
+    const Image cur = texture(16, 16);
+    Image hist(cur.extent(), Format::Float3), blur(cur.extent(), Format::Float);
+    hist.fill(0.45f);
+    blur.fill(1.f);
+    auto runWith = [&](bool antiAliased) {
+        auto h = PassHarness::make<TaaPass>(cur.extent(),
+                                            {{"gamma", 100.0}, {"jitteredBlurAlpha", 0.1}});
+        StubResolve rc;
+        rc.bound = {"color", "history", "resampleBlur"};
+        if (antiAliased) rc.bound.push_back("antiAliased");
+        h.pass().resolve(rc);
+        EXPECT_EQ(rc.ignored.size(), antiAliased ? 1u : 0u);
+        h.bind("color", cur);
+        h.bind("history", hist);
+        h.bind("resampleBlur", blur);
+        h.run();
+        return copyOf(h.out("color"));
+    };
+    EXPECT_LT(maxAbsDiff(runWith(false), cur), 1e-6f);  // blurAlpha 1: the current colour
+    EXPECT_GT(meanAbsDiff(runWith(true), cur), 0.05);   // alpha 0.1: mostly the history
 }
