@@ -48,8 +48,12 @@ const std::vector<OutputSpec>& loaderOutputs() {
         {"indirect", Format::Float3, 0.f, "indirect part of color (radiance)"},
         {"diffuse", Format::Float3, 0.f, "diffuse part of color (radiance)"},
         {"diffuseAlbedo", Format::Float3, 0.f, "albedo of the diffuse part"},
+        {"jitteredDiffuseAlbedo", Format::Float3, 0.f,
+         "diffuseAlbedo where the render is anti-aliased (as jitteredAlbedo)"},
         {"specular", Format::Float3, 0.f, "specular/glossy part of color (radiance)"},
         {"specularAlbedo", Format::Float3, 0.f, "albedo of the specular part"},
+        {"jitteredSpecularAlbedo", Format::Float3, 0.f,
+         "specularAlbedo where the render is anti-aliased (as jitteredAlbedo)"},
         {"normal", Format::Float3, 0.f, "world-space unit shading normal, 0 on background"},
         {"depth", Format::Float, kBackgroundDepth, "linear view depth, 1e10 on background"},
         {"position", Format::Float3, 0.f, "world-space position"},
@@ -57,6 +61,13 @@ const std::vector<OutputSpec>& loaderOutputs() {
         {"objectId", Format::Int32, float(kBackgroundId), "object id, -1 on background"},
     };
     return outputs;
+}
+
+const char* jitteredOf(std::string_view output) {
+    if (output == "jitteredAlbedo") return "albedo";
+    if (output == "jitteredDiffuseAlbedo") return "diffuseAlbedo";
+    if (output == "jitteredSpecularAlbedo") return "specularAlbedo";
+    return nullptr;
 }
 
 namespace {
@@ -201,7 +212,7 @@ Plan planCanonical(const ChannelSets& files) {
     Builder b(Layout::Canonical, files);
     b.set("color", {{""}});
     for (const auto& o : loaderOutputs())
-        if (std::string(o.name) != "color" && std::string(o.name) != "jitteredAlbedo") {
+        if (std::string(o.name) != "color" && !jitteredOf(o.name)) {
             if (std::string(o.name) == "objectId") {
                 // "objectId.id" (the documented name) or any single channel of the layer.
                 b.set(o.name, {{"objectId.id"}});

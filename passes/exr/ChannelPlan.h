@@ -6,6 +6,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "kestrel/Format.h"
@@ -66,6 +67,9 @@ struct OutputSpec {
     const char* description;
 };
 const std::vector<OutputSpec>& loaderOutputs();
+/// The albedo a jittered* output repeats where the render is anti-aliased ("jitteredAlbedo" ->
+/// "albedo"), or null for any other output.
+const char* jitteredOf(std::string_view output);
 
 Plan planCanonical(const ChannelSets& files);
 /// `layer`: the Blender view layer ("ViewLayer"), found by blenderLayer().

@@ -399,7 +399,7 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
     }
     std::set<std::string> overridden;
     if (!channelsParam_.empty()) overridden = applyChannelOverrides(plan_, channelsParam_, sets);
-    if (!overridden.count("jitteredAlbedo")) planAntiAliasing(probed.get());
+    planAntiAliasing(probed.get(), overridden);
     note(std::string("layout ") + layoutName(plan_.layout) + " (" + firstPath + ")");
     for (const auto& r : plan_.recipes)
         if (!r.absent) note(r.output + " = " + r.why);
@@ -434,26 +434,38 @@ std::optional<float> ExrLoader::measureDepthJitter(ExrInput* first) const {
     return depthJitterScore(z.data(), W, H);
 }
 
-void ExrLoader::planAntiAliasing(ExrInput* first) {
-    Recipe& out = *plan_.find("jitteredAlbedo");
-    const Recipe& albedo = *plan_.find("albedo");
-    auto absent = [&](std::string why) {
-        out.terms.clear();
-        out.absent = true;
-        out.why = std::move(why);
-    };
-    if (albedo.absent) return absent("no albedo (" + albedo.why + ")");
-    AntiAliasing aa;
-    if (antiAliasedParam_ != "auto") {
-        aa = {antiAliasedParam_ == "true", "antiAliased parameter " + antiAliasedParam_};
-    } else {
-        const auto stated = statedFilterWidth(first);
-        aa = decideAntiAliasing(stated, stated ? std::nullopt : measureDepthJitter(first));
+void ExrLoader::planAntiAliasing(ExrInput* first, const std::set<std::string>& overridden) {
+    std::optional<AntiAliasing> aa;  // decided once, for the first albedo present
+    for (const auto& o : loaderOutputs()) {
+        const char* base = jitteredOf(o.name);
+        if (!base || overridden.count(o.name)) continue;
+        Recipe& out = *plan_.find(o.name);
+        const Recipe& albedo = *plan_.find(base);
+        auto absent = [&](std::string why) {
+            out.terms.clear();
+            out.absent = true;
+            out.why = std::move(why);
+        };
+        if (albedo.absent) {
+            absent("no " + std::string(base) + " (" + albedo.why + ")");
+            continue;
+        }
+        if (!aa) {
+            if (antiAliasedParam_ != "auto") {
+                aa = {antiAliasedParam_ == "true", "antiAliased parameter " + antiAliasedParam_};
+            } else {
+                const auto stated = statedFilterWidth(first);
+                aa = decideAntiAliasing(stated, stated ? std::nullopt : measureDepthJitter(first));
+            }
+        }
+        if (!aa->antiAliased) {
+            absent(aa->why);
+            continue;
+        }
+        out.terms = albedo.terms;
+        out.absent = false;
+        out.why = albedo.why + ": " + aa->why;
     }
-    if (!aa.antiAliased) return absent(aa.why);
-    out.terms = albedo.terms;
-    out.absent = false;
-    out.why = albedo.why + ": " + aa.why;
 }
 
 void ExrLoader::resolve(ResolveContext& rc) {

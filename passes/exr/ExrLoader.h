@@ -43,10 +43,11 @@ private:
     std::string filePath(const std::string& role, int64_t frame) const;
     ExrInput& openRole(const std::string& role, int64_t frame);
     void fillScene(int64_t frame, SceneData& scene);
-    /// jitteredAlbedo: the albedo's recipe where the render is anti-aliased (PixelJitter.h).
+    /// The jittered* outputs: their albedo's recipe where the render is anti-aliased
+    /// (PixelJitter.h, decided once); an output the channels parameter set stays as set.
     /// `first`: the probed first file (null for GAMES202), read again for its depth only when
     /// the render does not state its pixel filter.
-    void planAntiAliasing(ExrInput* first);
+    void planAntiAliasing(ExrInput* first, const std::set<std::string>& overridden);
     std::optional<float> statedFilterWidth(const ExrInput* first) const;
     std::optional<float> measureDepthJitter(ExrInput* first) const;
 

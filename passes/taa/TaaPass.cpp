@@ -225,17 +225,10 @@ PassDesc TaaPass::describe() {
         .optionalInput("resampleBlur", Format::Float,
                        "how much resampling blurred the history, in [0, 1] (Reprojection's "
                        "resampleBlur): the current frame's weight rises towards blurAlpha with it")
-        .optionalInput("antiAliased", Format::Any,
-                       "bound only where the render is anti-aliased (the loader's jitteredAlbedo); "
-                       "never read: its presence selects jitteredBlurAlpha at compile time")
         .paramFloat("alpha", 0.1, 0.0, 1.0, "weight of the current frame in the blend")
         .paramFloat("blurAlpha", 1.0, 0.0, 1.0,
                     "weight of the current frame where the history was resampled midway between "
-                    "pixels (resampleBlur 1), on a point-sampled render: there the history "
-                    "cannot add detail, only blur it")
-        .paramFloat("jitteredBlurAlpha", 0.4, 0.0, 1.0,
-                    "blurAlpha on an anti-aliased render (antiAliased bound): there the history "
-                    "is the anti-aliasing, and the reference is itself filtered")
+                    "pixels (resampleBlur 1)")
         .paramFloat("gamma", 1.0, 0.0, 100.0,
                     "neighbourhood box half-width in standard deviations (variance clipping)")
         .paramEnum("mode", "clip", {"clip", "clamp"},
@@ -250,16 +243,9 @@ TaaPass::TaaPass(const ParamValues& params)
       gamma_(params.getFloat("gamma")),
       clip_(params.getString("mode") == "clip"),
       antiFlicker_(params.getBool("antiFlicker")),
-      blurAlpha_(params.getFloat("blurAlpha")),
-      jitteredBlurAlpha_(params.getFloat("jitteredBlurAlpha")) {}
+      blurAlpha_(params.getFloat("blurAlpha")) {}
 
 void TaaPass::resolve(ResolveContext& rc) {
-    antiAliased_ = rc.isBound("antiAliased");
-    if (antiAliased_) {
-        rc.ignoreInput("antiAliased", "a flag, never read");
-        rc.note("anti-aliased render: history resampled between pixels keeps weight " +
-                std::to_string(1.f - jitteredBlurAlpha_));
-    }
     if (!rc.isBound("history")) {
         rc.forward("color", "color");
         rc.note("no history bound: TAA passes the current colour through");
@@ -273,8 +259,7 @@ void TaaPass::execute(FrameContext& ctx, PassIO& io) {
     const ImageView* hist = io.hasInput("history") ? &io.input("history") : nullptr;
     const ImageView* len = io.hasInput("historyLength") ? &io.input("historyLength") : nullptr;
     const ImageView* blur = io.hasInput("resampleBlur") ? &io.input("resampleBlur") : nullptr;
-    const Params prm{alpha_, gamma_, clip_, antiFlicker_,
-                     antiAliased_ ? jitteredBlurAlpha_ : blurAlpha_};
+    const Params prm{alpha_, gamma_, clip_, antiFlicker_, blurAlpha_};
 
     ctx.parallelRows(h, [&](int ya, int yb) {
         if (!hist) {  // no history: exactly the current colour

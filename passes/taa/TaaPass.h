@@ -13,11 +13,10 @@
 //   - blend: out = alpha * C + (1 - alpha) * H, optionally with inverse-luminance weights
 //     (Karis 2014, "High Quality Temporal Supersampling") so a bright outlier cannot flicker;
 //   - alpha rises with the history's resampling blur (Reprojection's resampleBlur, Karis 2014):
-//     on a point-sampled render the reference is as sharp as each frame, and history resampled
-//     between pixel centres only blurs texture (the Blender sample room: 33.4 dB with the
-//     history at full weight, 35.9 with blurAlpha 1, 36.3 without TAA). On an anti-aliased
-//     render (the loader offers jitteredAlbedo) the history is the anti-aliasing and keeps
-//     more weight (jitteredBlurAlpha).
+//     history resampled between pixel centres blurs texture, and the blur accumulates (the
+//     Blender sample room: 33.4 dB with the history at full weight, 35.9 with blurAlpha 1,
+//     36.3 without TAA; anti-aliased renders gain from it too once their albedo is averaged
+//     over frames).
 #include <kestrel/Kestrel.h>
 
 namespace kestrel::passes {
@@ -35,8 +34,6 @@ private:
     bool clip_ = true;
     bool antiFlicker_ = true;
     float blurAlpha_ = 1.f;
-    float jitteredBlurAlpha_ = 0.4f;
-    bool antiAliased_ = false;  ///< decided at compile time by whether antiAliased is bound
 };
 
 }  // namespace kestrel::passes

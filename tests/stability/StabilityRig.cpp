@@ -187,14 +187,23 @@ const char* kJbfFallback = R"({"kestrel": 1, "name": "jbf-stability",
 
 const std::vector<std::pair<std::string, Format>>& sourcePorts() {
     static const std::vector<std::pair<std::string, Format>> ports = {
-        {"color", Format::Float3},          {"albedo", Format::Float3},
-        {"emission", Format::Float3},       {"direct", Format::Float3},
-        {"indirect", Format::Float3},       {"diffuse", Format::Float3},
-        {"specular", Format::Float3},       {"diffuseAlbedo", Format::Float3},
-        {"specularAlbedo", Format::Float3}, {"normal", Format::Float3},
-        {"depth", Format::Float},           {"position", Format::Float3},
-        {"motion", Format::Float2},         {"objectId", Format::Int32},
-        {"jitteredAlbedo", Format::Float3}};
+        {"color", Format::Float3},
+        {"albedo", Format::Float3},
+        {"emission", Format::Float3},
+        {"direct", Format::Float3},
+        {"indirect", Format::Float3},
+        {"diffuse", Format::Float3},
+        {"specular", Format::Float3},
+        {"diffuseAlbedo", Format::Float3},
+        {"specularAlbedo", Format::Float3},
+        {"normal", Format::Float3},
+        {"depth", Format::Float},
+        {"position", Format::Float3},
+        {"motion", Format::Float2},
+        {"objectId", Format::Int32},
+        {"jitteredAlbedo", Format::Float3},
+        {"jitteredDiffuseAlbedo", Format::Float3},
+        {"jitteredSpecularAlbedo", Format::Float3}};
     return ports;
 }
 

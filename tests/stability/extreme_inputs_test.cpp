@@ -125,6 +125,42 @@ TEST(ExtremeInputs, AntiAliasedAlbedoWithZeroNanAndInf) {
     EXPECT_TRUE(bitwiseEqual(one.last, two.last)) << "1 vs 2 threads differ";
 }
 
+TEST(ExtremeInputs, AntiAliasedSplitAlbedosWithZeroNanAndInf) {
+    // The same with the diffuse/specular split (a Blender render with a 1.5 px filter): each
+    // chain averages its own albedo. The specular part is a tenth of the colour, under white.
+    auto modify = [](int64_t frame, Frame& f) {
+        for (int y = 0; y < 32; ++y)
+            for (int x = 0; x < 48; ++x) {
+                const float a = ((x + y + int(frame)) & 1) ? 0.2f : 0.8f;
+                for (const char* port : {"albedo", "diffuseAlbedo", "jitteredDiffuseAlbedo"})
+                    setRgb(f, port, x, y, a, a, a);
+                setRgb(f, "specularAlbedo", x, y, 1.f, 1.f, 1.f);
+                setRgb(f, "jitteredSpecularAlbedo", x, y, 1.f, 1.f, 1.f);
+                for (int c = 0; c < 3; ++c) {
+                    const float v = f["color"].at(c, x, y) * 2.f * a;
+                    f["color"].at(c, x, y) = v;
+                    f["diffuse"].at(c, x, y) = 0.9f * v;
+                    f["specular"].at(c, x, y) = 0.1f * v;
+                }
+            }
+        for (const char* port : {"jitteredDiffuseAlbedo", "jitteredSpecularAlbedo"}) {
+            setRgb(f, port, 4, 4, 0.f, 0.f, 0.f);
+            setRgb(f, port, 9, 6, kNaN, kNaN, kNaN);
+            setRgb(f, port, 20, 9, kInf, -kInf, kInf);
+        }
+    };
+    Scenario sc = plainScene({48, 32}, modify);
+    for (const char* port : {"diffuse", "specular", "diffuseAlbedo", "specularAlbedo",
+                             "jitteredDiffuseAlbedo", "jitteredSpecularAlbedo"})
+        sc.provides.insert(port);
+    setScenario("aa-split", sc);
+    const TestGraph g = svgfGraph("aa-split");
+    const Checked one = runBounded(g, kFrames, 0.f, 1.6f * kPlainHi, 1, "aa-split");
+    const Checked two = runBounded(g, kFrames, 0.f, 1.6f * kPlainHi, 2, "aa-split");
+    std::printf("anti-aliased split: output range [%g, %g]\n", one.worst.min, one.worst.max);
+    EXPECT_TRUE(bitwiseEqual(one.last, two.last)) << "1 vs 2 threads differ";
+}
+
 TEST(ExtremeInputs, BackgroundPixels) {
     // Right quarter is background (depth 1e10, zero normal, id -1, albedo 0) with sky radiance.
     runCase({"background", [](int64_t, Frame& f) {

@@ -103,6 +103,23 @@ TEST(PixelJitter, LoaderOffersJitteredAlbedoOnlyForAntiAliasedRenders) {
     EXPECT_EQ(rc.absent.count("jitteredAlbedo"), 1u);
 }
 
+// The diffuse/specular split's albedos are averaged like the single albedo: each jittered*
+// output is present exactly where its albedo is and the render is anti-aliased.
+TEST(PixelJitter, SplitAlbedosFollowTheSameDecision) {
+    TempDir tmp("jitter-split");
+    Channels split = canonicalFrame(planeDepth(0.75f));
+    for (const char* c : {"diffuseAlbedo.R", "diffuseAlbedo.G", "diffuseAlbedo.B"})
+        split[c].assign(size_t(W) * H, 0.5f);
+    auto rc = resolveLoader(tmp, split, nullptr);
+    EXPECT_EQ(rc.absent.count("jitteredAlbedo"), 0u);
+    EXPECT_EQ(rc.absent.count("jitteredDiffuseAlbedo"), 0u);
+    ASSERT_EQ(rc.absent.count("jitteredSpecularAlbedo"), 1u);  // no specularAlbedo
+    EXPECT_NE(rc.absent["jitteredSpecularAlbedo"].find("no specularAlbedo"), std::string::npos)
+        << rc.absent["jitteredSpecularAlbedo"];
+    rc = resolveLoader(tmp, split, nullptr, "false");
+    EXPECT_EQ(rc.absent.count("jitteredDiffuseAlbedo"), 1u);
+}
+
 TEST(PixelJitter, JitteredAlbedoHoldsTheAlbedo) {
     TempDir tmp("jitter-values");
     Imf::Header attrs;
