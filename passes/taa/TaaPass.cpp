@@ -225,6 +225,9 @@ PassDesc TaaPass::describe() {
         .optionalInput("resampleBlur", Format::Float,
                        "how much resampling blurred the history, in [0, 1] (Reprojection's "
                        "resampleBlur): the current frame's weight rises towards blurAlpha with it")
+        .optionalInput("antiAliased", Format::Any,
+                       "bound only where the render is anti-aliased (the loader's jitteredAlbedo); "
+                       "never read: with onlyAntiAliased, TAA is left out where it is not bound")
         .paramFloat("alpha", 0.1, 0.0, 1.0, "weight of the current frame in the blend")
         .paramFloat("blurAlpha", 1.0, 0.0, 1.0,
                     "weight of the current frame where the history was resampled midway between "
@@ -233,6 +236,10 @@ PassDesc TaaPass::describe() {
                     "neighbourhood box half-width in standard deviations (variance clipping)")
         .paramEnum("mode", "clip", {"clip", "clamp"},
                    "clip: move the history towards the mean onto the box; clamp: per channel")
+        .paramBool("onlyAntiAliased", false,
+                   "leave TAA out (pass the colour through) unless antiAliased is bound: on a "
+                   "point-sampled render judged against a point-sampled reference the history "
+                   "has no detail to add")
         .paramBool("antiFlicker", true,
                    "inverse-luminance blend weights (Karis 2014): damps flicker of bright pixels");
     return d;
@@ -243,9 +250,17 @@ TaaPass::TaaPass(const ParamValues& params)
       gamma_(params.getFloat("gamma")),
       clip_(params.getString("mode") == "clip"),
       antiFlicker_(params.getBool("antiFlicker")),
-      blurAlpha_(params.getFloat("blurAlpha")) {}
+      blurAlpha_(params.getFloat("blurAlpha")),
+      onlyAntiAliased_(params.getBool("onlyAntiAliased")) {}
 
 void TaaPass::resolve(ResolveContext& rc) {
+    if (rc.isBound("antiAliased")) {
+        rc.ignoreInput("antiAliased", "a flag (the render is anti-aliased), never read");
+    } else if (onlyAntiAliased_) {
+        rc.forward("color", "color");
+        rc.note("point-sampled render: TAA left out (onlyAntiAliased)");
+        return;
+    }
     if (!rc.isBound("history")) {
         rc.forward("color", "color");
         rc.note("no history bound: TAA passes the current colour through");

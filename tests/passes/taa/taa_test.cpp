@@ -247,3 +247,43 @@ TEST(Taa, BlurredHistoryIsWeightedDown) {
     EXPECT_GT(half, 0.05 * full);
     EXPECT_LT(half, 0.7 * full);
 }
+
+namespace {
+
+/// The compile-time view of one pass: which inputs are bound; what it forwards and ignores.
+struct StubResolve : ResolveContext {
+    std::vector<std::string> bound, ignored, forwarded;
+    bool isBound(std::string_view in) const override {
+        return std::find(bound.begin(), bound.end(), in) != bound.end();
+    }
+    void forward(std::string_view out, std::string_view in) override {
+        forwarded.push_back(std::string(out) + "<-" + std::string(in));
+    }
+    void setAbsent(std::string_view, std::string) override {}
+    void ignoreInput(std::string_view in, std::string) override { ignored.emplace_back(in); }
+    void note(std::string) override {}
+    int64_t firstFrame() const override { return 1; }
+    std::string_view passName() const override { return "taa"; }
+};
+
+StubResolve resolveTaa(bool onlyAntiAliased, bool antiAliasedBound) {
+    auto h = PassHarness::make<TaaPass>({4, 4}, {{"onlyAntiAliased", onlyAntiAliased}});
+    StubResolve rc;
+    rc.bound = {"color", "history", "historyLength", "resampleBlur"};
+    if (antiAliasedBound) rc.bound.push_back("antiAliased");
+    h.pass().resolve(rc);
+    return rc;
+}
+
+}  // namespace
+
+// onlyAntiAliased leaves TAA out (colour forwarded) where the render is point-sampled (the
+// loader offers no jitteredAlbedo, so antiAliased is unbound); the flag itself is never read.
+TEST(Taa, OnlyAntiAliasedLeavesThePassOutOnPointSampledRenders) {
+    const std::vector<std::string> passThrough{"color<-color"};
+    EXPECT_EQ(resolveTaa(true, false).forwarded, passThrough);
+    const StubResolve aa = resolveTaa(true, true);
+    EXPECT_TRUE(aa.forwarded.empty());
+    EXPECT_EQ(aa.ignored, std::vector<std::string>{"antiAliased"});
+    EXPECT_TRUE(resolveTaa(false, false).forwarded.empty());  // runs unless asked otherwise
+}
