@@ -311,7 +311,7 @@ std::set<std::string> applyChannelOverrides(Plan& plan, const std::string& spec,
         int n = r->format == Format::Int32 ? 1 : channelCount(r->format);
         r->terms.clear();
         r->backgroundMask.reset();
-        r->zeroIsBackground = r->cameraSpace = false;
+        r->zeroIsBackground = r->cameraSpace = r->fromDepth = r->rayLength = false;
         r->scale[0] = r->scale[1] = r->scale[2] = r->scale[3] = 1.f;
         if (expr.empty()) {
             r->absent = true;

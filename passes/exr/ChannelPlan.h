@@ -42,6 +42,10 @@ struct Recipe {
     IdRule idRule = IdRule::Round;             ///< Int32 outputs
     bool zeroIsBackground = false;  ///< depth: values <= 0 (or NaN) are background (1e10)
     bool cameraSpace = false;       ///< normal: camera space, rotated to world by the camera
+    /// position: unprojected from the depth channel (its one term) with the frame's camera,
+    /// for renders without a Position pass (rayLength: the depth is a distance along the ray,
+    /// as Cycles' Denoising Depth, not planar)
+    bool fromDepth = false, rayLength = false;
     bool absent = false;
     std::string why;  ///< absent: which channel is missing; present: what is read (for notes)
 

@@ -16,6 +16,7 @@
 #include <set>
 
 #include "PixelJitter.h"
+#include "Unproject.h"
 
 namespace kestrel::exr {
 
@@ -400,6 +401,7 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
     std::set<std::string> overridden;
     if (!channelsParam_.empty()) overridden = applyChannelOverrides(plan_, channelsParam_, sets);
     planAntiAliasing(probed.get(), overridden);
+    if (!overridden.count("position")) planPositionFromDepth(probed.get());
     note(std::string("layout ") + layoutName(plan_.layout) + " (" + firstPath + ")");
     for (const auto& r : plan_.recipes)
         if (!r.absent) note(r.output + " = " + r.why);
@@ -432,6 +434,45 @@ std::optional<float> ExrLoader::measureDepthJitter(ExrInput* first) const {
         return std::nullopt;
     }
     return depthJitterScore(z.data(), W, H);
+}
+
+void ExrLoader::unprojectDepth(FrameContext& ctx, const float* depth, bool rayLength,
+                               const ImageView& out, int W, int H) const {
+    const size_t N = size_t(W) * size_t(H);
+    std::optional<Mat4> cameraToWorld;
+    if (ctx.scene && ctx.scene->hasCamera) cameraToWorld = inverse(ctx.scene->worldToCamera);
+    if (!cameraToWorld) {  // this frame has no camera: no positions (Reprojection: disocclusion)
+        for (int c = 0; c < 3; ++c) fillPlane(asFloats(out, c), N, 0.f);
+        return;
+    }
+    const Mat4 cameraToPixel = ctx.scene->worldToPixel * *cameraToWorld;
+    ctx.parallelRows(H, [&](int y0, int y1) {
+        unprojectRows(cameraToPixel, *cameraToWorld, depth, rayLength,
+                      {asFloats(out, 0), asFloats(out, 1), asFloats(out, 2)}, W, y0, y1);
+    });
+}
+
+void ExrLoader::planPositionFromDepth(const ExrInput* first) {
+    Recipe& position = *plan_.find("position");
+    const Recipe& depth = *plan_.find("depth");
+    // A render without the Position pass (Blender's usual set-up: Z or Denoising Data only)
+    // would otherwise leave a graph without motion vectors no way to reproject but the
+    // identity. The camera: camera.json (Blender) or the canonical file's matrices.
+    auto canonicalCamera = [&] {
+        if (plan_.layout != Layout::Canonical || !first) return false;
+        const Imf::Header& h = first->header();
+        return h.findTypedAttribute<Imf::M44fAttribute>("kestrel.worldToPixel") &&
+               h.findTypedAttribute<Imf::M44fAttribute>("kestrel.worldToCamera");
+    };
+    if (!position.absent || depth.absent || !depth.isDirect() || !(cameras_ || canonicalCamera()))
+        return;
+    position.terms = {{{depth.terms[0][0][0]}}};
+    position.fromDepth = true;
+    position.rayLength = depth.zeroIsBackground;  // Denoising Depth: distance along the ray
+    position.absent = false;
+    position.why = "unprojected from " + depth.terms[0][0][0].str() + " with " +
+                   (cameras_ ? cameras_->path().filename().string() : "the file's camera") +
+                   " (no position channels)";
 }
 
 void ExrLoader::planAntiAliasing(ExrInput* first, const std::set<std::string>& overridden) {
@@ -576,7 +617,7 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
     std::map<ChannelRef, float*> dest;
     std::map<ChannelRef, float> fills;
     std::vector<std::pair<float*, ChannelRef>> copies;  // a channel wanted in two output planes
-    std::vector<const Recipe*> composite, active;
+    std::vector<const Recipe*> composite, active, derived;
     for (const auto& r : plan_.recipes) {
         if (!io.hasOutput(r.output)) continue;
         const ImageView& out = io.output(r.output);
@@ -587,6 +628,10 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
             continue;
         }
         active.push_back(&r);
+        if (r.fromDepth) {  // computed from the depth channel below (read into scratch)
+            derived.push_back(&r);
+            continue;
+        }
         if (r.isDirect()) {
             const Factor& f = r.terms[0][0];
             for (size_t c = 0; c < f.size(); ++c) {
@@ -687,6 +732,10 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
             }
         });
     }
+    // Positions unprojected from raw depth (before depth's own background convention).
+    for (const Recipe* r : derived)
+        unprojectDepth(ctx, dest[r->terms[0][0][0]], r->rayLength, io.output(r->output), W, H);
+
     // Convention fixes, in place: scales (motion y), background depth, then ids to int32.
     for (const Recipe* r : active) {
         const ImageView& out = io.output(r->output);

@@ -48,6 +48,10 @@ private:
     /// `first`: the probed first file (null for GAMES202), read again for its depth only when
     /// the render does not state its pixel filter.
     void planAntiAliasing(ExrInput* first, const std::set<std::string>& overridden);
+    /// position from depth and the camera where the render has no position channels.
+    void planPositionFromDepth(const ExrInput* first);
+    void unprojectDepth(FrameContext& ctx, const float* depth, bool rayLength, const ImageView& out,
+                        int W, int H) const;
     std::optional<float> statedFilterWidth(const ExrInput* first) const;
     std::optional<float> measureDepthJitter(ExrInput* first) const;
 

@@ -1,0 +1,56 @@
+#include "Unproject.h"
+
+#include <cmath>
+
+namespace kestrel::exr {
+
+/// World positions of every pixel from its depth and the frame's camera (worldToCamera,
+/// worldToPixel): the camera-space point on pixel (i + 0.5, j + 0.5)'s ray at planar depth d
+/// (z = -d), or, for a ray length, on the unit-depth ray point scaled to that length (a
+/// perspective camera: rays start at the camera). Background (depth <= 0, >= 1e9 or NaN) and
+/// rays the camera cannot invert get (0, 0, 0), the Position pass's background.
+void unprojectRows(const Mat4& cameraToPixel, const Mat4& cameraToWorld, const float* depth,
+                   bool rayLength, std::array<float*, 3> out, int W, int y0, int y1) {
+    const auto& A = cameraToPixel.m;
+    const auto& M = cameraToWorld.m;
+    float *ox = out[0], *oy = out[1], *oz = out[2];
+    for (int y = y0; y < y1; ++y) {
+        const double py = y + 0.5;
+        for (int x = 0; x < W; ++x) {
+            const size_t i = size_t(y) * size_t(W) + size_t(x);
+            const double px = x + 0.5, d = depth[i];
+            ox[i] = oy[i] = oz[i] = 0.f;
+            if (!(d > 0.0) || d >= 1e9) continue;
+            // (row0 - px row3) . c = 0 and (row1 - py row3) . c = 0 for c = (xc, yc, zc, 1).
+            double a[4], b[4];
+            for (int k = 0; k < 4; ++k) {
+                a[k] = A[0][k] - px * A[3][k];
+                b[k] = A[1][k] - py * A[3][k];
+            }
+            const double det = a[0] * b[1] - a[1] * b[0];
+            if (!(std::fabs(det) > 1e-12)) continue;
+            auto solve = [&](double zc, double& xc, double& yc) {
+                const double ra = -(a[2] * zc + a[3]), rb = -(b[2] * zc + b[3]);
+                xc = (ra * b[1] - a[1] * rb) / det;
+                yc = (a[0] * rb - ra * b[0]) / det;
+            };
+            double xc, yc, zc = -d;
+            solve(zc, xc, yc);
+            if (rayLength) {  // d is |c|: scale the planar-depth-1 point to that length
+                solve(-1.0, xc, yc);
+                const double s = d / std::sqrt(xc * xc + yc * yc + 1.0);
+                xc *= s, yc *= s, zc = -s;
+            }
+            const double c[4] = {xc, yc, zc, 1.0};
+            double w[3] = {0, 0, 0};
+            for (int r = 0; r < 3; ++r)
+                for (int k = 0; k < 4; ++k) w[r] += double(M[r][k]) * c[k];
+            if (!(std::isfinite(w[0]) && std::isfinite(w[1]) && std::isfinite(w[2]))) continue;
+            ox[i] = float(w[0]);
+            oy[i] = float(w[1]);
+            oz[i] = float(w[2]);
+        }
+    }
+}
+
+}  // namespace kestrel::exr

@@ -1,0 +1,16 @@
+#pragma once
+// World positions from a depth image and the frame's camera, for renders without a Position
+// pass: the loader's position output then lets Reprojection use its matrix path where there are
+// no motion vectors.
+#include <kestrel/Math.h>
+
+#include <array>
+
+namespace kestrel::exr {
+
+/// Rows [y0, y1) of a W-wide image: out[c][i] = world position of pixel i. cameraToPixel maps
+/// camera space to pixel coordinates (worldToPixel times the camera-to-world matrix).
+void unprojectRows(const Mat4& cameraToPixel, const Mat4& cameraToWorld, const float* depth,
+                   bool rayLength, std::array<float*, 3> out, int W, int y0, int y1);
+
+}  // namespace kestrel::exr
