@@ -151,7 +151,7 @@ PassDesc ExrLoader::describe() {
                   "override output channels: out=Layer[*Layer][+...],... e.g. "
                   "albedo=ViewLayer.DiffCol (empty expression: leave the output out)");
     d.paramEnum("antiAliased", "auto", {"auto", "true", "false"},
-                "whether the render is anti-aliased (jitteredAlbedo present); auto: the pixel "
+                "whether the render is anti-aliased (the jittered* albedos present); auto: the pixel "
                 "filter camera.json or kestrel.pixelFilterWidth states, else the first frame's "
                 "depth jitter");
     d.paramInt("maxPixels", int64_t(1) << 27, 1, int64_t(1) << 40,

@@ -127,12 +127,14 @@ TEST(ExtremeInputs, AntiAliasedAlbedoWithZeroNanAndInf) {
 
 TEST(ExtremeInputs, AntiAliasedSplitAlbedosWithZeroNanAndInf) {
     // The same with the diffuse/specular split (a Blender render with a 1.5 px filter): each
-    // chain averages its own albedo. The specular part is a tenth of the colour, under white.
+    // chain averages its own albedo, and TAA runs (the loader offers jitteredAlbedo with the
+    // split's). The specular part is a tenth of the colour, under white.
     auto modify = [](int64_t frame, Frame& f) {
         for (int y = 0; y < 32; ++y)
             for (int x = 0; x < 48; ++x) {
                 const float a = ((x + y + int(frame)) & 1) ? 0.2f : 0.8f;
-                for (const char* port : {"albedo", "diffuseAlbedo", "jitteredDiffuseAlbedo"})
+                for (const char* port :
+                     {"albedo", "jitteredAlbedo", "diffuseAlbedo", "jitteredDiffuseAlbedo"})
                     setRgb(f, port, x, y, a, a, a);
                 setRgb(f, "specularAlbedo", x, y, 1.f, 1.f, 1.f);
                 setRgb(f, "jitteredSpecularAlbedo", x, y, 1.f, 1.f, 1.f);
@@ -151,7 +153,7 @@ TEST(ExtremeInputs, AntiAliasedSplitAlbedosWithZeroNanAndInf) {
     };
     Scenario sc = plainScene({48, 32}, modify);
     for (const char* port : {"diffuse", "specular", "diffuseAlbedo", "specularAlbedo",
-                             "jitteredDiffuseAlbedo", "jitteredSpecularAlbedo"})
+                             "jitteredAlbedo", "jitteredDiffuseAlbedo", "jitteredSpecularAlbedo"})
         sc.provides.insert(port);
     setScenario("aa-split", sc);
     const TestGraph g = svgfGraph("aa-split");

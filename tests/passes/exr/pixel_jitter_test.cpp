@@ -118,6 +118,30 @@ TEST(PixelJitter, SplitAlbedosFollowTheSameDecision) {
         << rc.absent["jitteredSpecularAlbedo"];
     rc = resolveLoader(tmp, split, nullptr, "false");
     EXPECT_EQ(rc.absent.count("jitteredDiffuseAlbedo"), 1u);
+    // The split's albedo without a single albedo still decides, and is offered.
+    for (const char* c : {"albedo.R", "albedo.G", "albedo.B"}) split.erase(c);
+    rc = resolveLoader(tmp, split, nullptr);
+    EXPECT_EQ(rc.absent.count("jitteredAlbedo"), 1u);
+    EXPECT_EQ(rc.absent.count("jitteredDiffuseAlbedo"), 0u);
+}
+
+// A jittered* output the channels parameter sets keeps what it was set to, whatever the
+// decision; one it leaves out stays out.
+TEST(PixelJitter, ChannelsOverrideOfAJitteredAlbedoIsKept) {
+    TempDir tmp("jitter-override");
+    writeExr(tmp.path / "f.0001.exr", Imath::Box2i({0, 0}, {W - 1, H - 1}),
+             canonicalFrame(planeDepth(0.f)), {}, nullptr);
+    auto resolveWith = [&](const std::string& channels) {
+        auto h = PassHarness::make<ExrLoader>(
+            {1, 1}, {{"path", (tmp.path / "f.####.exr").string()}, {"channels", channels}});
+        RecordingResolve rc(1);
+        h.pass().resolve(rc);
+        return rc;
+    };
+    // Point-sampled, yet the override offers it.
+    EXPECT_EQ(resolveWith("jitteredDiffuseAlbedo=albedo").absent.count("jitteredDiffuseAlbedo"),
+              0u);
+    EXPECT_EQ(resolveWith("jitteredAlbedo=").absent.count("jitteredAlbedo"), 1u);
 }
 
 TEST(PixelJitter, JitteredAlbedoHoldsTheAlbedo) {

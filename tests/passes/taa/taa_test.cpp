@@ -266,10 +266,11 @@ struct StubResolve : ResolveContext {
     std::string_view passName() const override { return "taa"; }
 };
 
-StubResolve resolveTaa(bool onlyAntiAliased, bool antiAliasedBound) {
+StubResolve resolveTaa(bool onlyAntiAliased, bool antiAliasedBound, bool history = true) {
     auto h = PassHarness::make<TaaPass>({4, 4}, {{"onlyAntiAliased", onlyAntiAliased}});
     StubResolve rc;
-    rc.bound = {"color", "history", "historyLength", "resampleBlur"};
+    rc.bound = {"color", "historyLength", "resampleBlur"};
+    if (history) rc.bound.push_back("history");
     if (antiAliasedBound) rc.bound.push_back("antiAliased");
     h.pass().resolve(rc);
     return rc;
@@ -286,4 +287,8 @@ TEST(Taa, OnlyAntiAliasedLeavesThePassOutOnPointSampledRenders) {
     EXPECT_TRUE(aa.forwarded.empty());
     EXPECT_EQ(aa.ignored, std::vector<std::string>{"antiAliased"});
     EXPECT_TRUE(resolveTaa(false, false).forwarded.empty());  // runs unless asked otherwise
+    // No history bound: the colour passes through, the flag is still not read.
+    const StubResolve noHistory = resolveTaa(true, true, false);
+    EXPECT_EQ(noHistory.forwarded, passThrough);
+    EXPECT_EQ(noHistory.ignored, std::vector<std::string>{"antiAliased"});
 }
