@@ -23,6 +23,7 @@ inline float sanitise(float v) {
 
 struct Params {
     float alpha, k;
+    bool holdCurrent;  ///< widen the box to contain the current colour
 };
 
 // One channel of one pixel from its window sums s1 = sum(C_q - C_p), s2 = sum((C_q - C_p)^2)
@@ -31,7 +32,13 @@ inline float blend(Params p, float centre, float s1, float s2, float inv, float 
     const float m1 = s1 * inv;
     const float var = std::max(0.f, std::fma(s2, inv, -(m1 * m1)));
     const float mu = centre + m1, sigma = std::sqrt(var);
-    const float clamped = std::clamp(hv, std::fma(-p.k, sigma, mu), std::fma(p.k, sigma, mu));
+    float lo = std::fma(-p.k, sigma, mu), hi = std::fma(p.k, sigma, mu);
+    // A window that straddles an edge (or a lone bright pixel) can have a box that excludes the
+    // centre's own colour: the history would be pulled towards the neighbours even where it
+    // equals the current colour (a black background beside a lit wall grows a halo).
+    lo = p.holdCurrent ? std::min(lo, centre) : lo;
+    hi = p.holdCurrent ? std::max(hi, centre) : hi;
+    const float clamped = std::clamp(hv, lo, hi);
     return std::fma(p.alpha, centre, (1.f - p.alpha) * clamped);
 }
 
@@ -135,14 +142,18 @@ PassDesc ClampedAccumulationPass::describe() {
         .output("color", Format::Float3, "accumulated colour")
         .paramFloat("alpha", 0.2, 0.0, 1.0, "weight of the current colour where history is valid")
         .paramFloat("k", 1.0, 0.0, 1000.0, "half-width of the colour box in standard deviations")
-        .paramInt("radius", 3, 0, 32, "window radius of the mean/sigma statistics (3: 7x7)");
+        .paramInt("radius", 3, 0, 32, "window radius of the mean/sigma statistics (3: 7x7)")
+        .paramBool("holdCurrent", false,
+                   "widen the box to contain the current colour (off: the homework's box), so "
+                   "that a history equal to the current colour is never pulled away from it");
     return d;
 }
 
 ClampedAccumulationPass::ClampedAccumulationPass(const ParamValues& params)
     : alpha_(params.getFloat("alpha")),
       k_(params.getFloat("k")),
-      radius_(int(params.getInt("radius"))) {}
+      radius_(int(params.getInt("radius"))),
+      holdCurrent_(params.getBool("holdCurrent")) {}
 
 void ClampedAccumulationPass::resolve(ResolveContext& rc) {
     if (!rc.isBound("history")) {
@@ -171,7 +182,7 @@ void ClampedAccumulationPass::execute(FrameContext& ctx, PassIO& io) {
         return;
     }
 
-    const Params prm{alpha_, k_};
+    const Params prm{alpha_, k_, holdCurrent_};
     const int ringRows = 2 * r + 1;
     ctx.parallelRows(h, [&](int y0, int y1) {
         // Sanitised colour of rows y - r .. y + r, in a ring indexed by row % (2 r + 1)

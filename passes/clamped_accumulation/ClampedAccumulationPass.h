@@ -20,6 +20,7 @@ private:
     float alpha_ = 0.2f;
     float k_ = 1.f;
     int radius_ = 3;
+    bool holdCurrent_ = false;
 };
 
 }  // namespace kestrel::passes

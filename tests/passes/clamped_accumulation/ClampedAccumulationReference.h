@@ -16,6 +16,7 @@ using namespace kestrel;
 
 struct Params {
     float alpha = 0.2f, k = 1.f;
+    bool holdCurrent = false;
     int radius = 3;
 };
 
@@ -52,8 +53,12 @@ inline Image accumulate(const Image& cur, const Image* hist, const Image* len, c
                 const float m1 = s1 * inv;
                 const float var = std::max(0.f, std::fma(s2, inv, -(m1 * m1)));
                 const float mu = centre + m1, sigma = std::sqrt(var);
-                const float clamped = std::clamp(hist->at(c, x, y), std::fma(-p.k, sigma, mu),
-                                                 std::fma(p.k, sigma, mu));
+                float lo = std::fma(-p.k, sigma, mu), hi = std::fma(p.k, sigma, mu);
+                if (p.holdCurrent) {
+                    lo = std::min(lo, centre);
+                    hi = std::max(hi, centre);
+                }
+                const float clamped = std::clamp(hist->at(c, x, y), lo, hi);
                 out.at(c, x, y) = std::fma(p.alpha, centre, (1.f - p.alpha) * clamped);
             }
         }

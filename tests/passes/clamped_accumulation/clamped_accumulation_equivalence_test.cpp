@@ -72,10 +72,14 @@ void expectEquivalent(const Inputs& in, bool withHist, bool withLen, const clamp
                       int threads, const std::string& what) {
     SCOPED_TRACE(what + " hist " + std::to_string(withHist) + " len " + std::to_string(withLen) +
                  " alpha " + std::to_string(p.alpha) + " k " + std::to_string(p.k) + " radius " +
-                 std::to_string(p.radius) + " threads " + std::to_string(threads));
-    auto h = PassHarness::make<ClampedAccumulationPass>(
-        in.cur.extent(),
-        {{"alpha", double(p.alpha)}, {"k", double(p.k)}, {"radius", int64_t(p.radius)}}, threads);
+                 std::to_string(p.radius) + " holdCurrent " + std::to_string(p.holdCurrent) +
+                 " threads " + std::to_string(threads));
+    auto h = PassHarness::make<ClampedAccumulationPass>(in.cur.extent(),
+                                                        {{"alpha", double(p.alpha)},
+                                                         {"k", double(p.k)},
+                                                         {"radius", int64_t(p.radius)},
+                                                         {"holdCurrent", p.holdCurrent}},
+                                                        threads);
     h.bind("color", in.cur);
     if (withHist) h.bind("history", in.hist);
     if (withLen) h.bind("historyLength", in.len);
@@ -105,6 +109,11 @@ void expectEquivalentAll(const Inputs& in, const std::string& what) {
     p = {};
     p.radius = 32;
     expectEquivalent(in, true, true, p, 2, what);
+    p = {};
+    p.holdCurrent = true;
+    for (int threads : {1, 2}) expectEquivalent(in, true, true, p, threads, what);
+    p.k = 0.f;
+    expectEquivalent(in, true, false, p, 2, what);
 }
 
 }  // namespace

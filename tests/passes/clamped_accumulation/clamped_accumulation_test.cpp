@@ -149,3 +149,23 @@ TEST(ClampedAccumulation, OneAndTwoThreadsIdentical) {
         for (size_t i = 0; i < e.pixels(); ++i)
             ASSERT_EQ(h1.out("color").channel(c)[i], h2.out("color").channel(c)[i]);
 }
+
+// A one-pixel black gap between lit walls, with a history equal to the current colour: the
+// homework's box (7x7 mean +- sigma: 0.86 +- 0.35) excludes the gap's own 0 and lifts its
+// history into a halo; with holdCurrent the box contains the current colour and the gap stays
+// black.
+TEST(ClampedAccumulation, HoldCurrentKeepsAHistoryThatEqualsTheCurrentColour) {
+    Image cur = grey(12, 8, 1.f);
+    for (int y = 0; y < 8; ++y)
+        for (int c = 0; c < 3; ++c) cur.at(c, 5, y) = 0.f;
+    auto run = [&](bool holdCurrent) {
+        auto h =
+            PassHarness::make<ClampedAccumulationPass>({12, 8}, {{"holdCurrent", holdCurrent}});
+        h.bind("color", cur);
+        h.bind("history", cur);  // the same image: a static scene
+        h.run();
+        return h.out("color").at(0, 5, 4);  // in the gap
+    };
+    EXPECT_GT(run(false), 0.3f);  // the homework's box: a halo (0.8 x 0.51)
+    EXPECT_EQ(run(true), 0.f);
+}
