@@ -1,4 +1,6 @@
 // kestrel run: compile a graph and execute it frame by frame over a sequence.
+#include <eval/ExrRgb.h>
+#include <eval/Metrics.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -13,10 +15,9 @@
 #include "Common.h"
 #include "OutputSafety.h"
 #include "Progress.h"
+#include "ReportSummary.h"
 #include "kestrel/Executor.h"
 #include "kestrel/FramePattern.h"
-#include <eval/ExrRgb.h>
-#include <eval/Metrics.h>
 #include "kestrel/Log.h"
 
 namespace kestrel::cli {
@@ -24,7 +25,9 @@ namespace kestrel::cli {
 namespace {
 
 std::atomic<bool> gInterrupted{false};
-extern "C" void onInterrupt(int) { gInterrupted.store(true); }
+extern "C" void onInterrupt(int) {
+    gInterrupted.store(true);
+}
 
 struct RunOptions {
     GraphOptions graph;
@@ -33,16 +36,21 @@ struct RunOptions {
     bool resume = false;
     int warmup = 0;
     bool skipBadFrames = false;
-    std::string size;  // WxH for graphs without a source
+    std::string size;                 // WxH for graphs without a source
     std::string reference, refLayer;  // print each frame's error against these frames
 };
 
 void logReport(const CompiledGraph& g) {
     const auto& r = g.report();
-    for (const auto& n : r.notes) spdlog::info("scene: {}", n);
-    for (const auto& p : r.elided) spdlog::info("left out {}: {}", p.pass, p.reason);
-    for (const auto& p : r.pruned) spdlog::info("pruned {}: {}", p.pass, p.reason);
-    for (const auto& a : r.absent) spdlog::debug("absent {}", a);
+    if (spdlog::should_log(spdlog::level::debug)) {  // -v: every note and left-out pass
+        for (const auto& n : r.notes) spdlog::debug("scene: {}", n);
+        for (const auto& p : r.elided) spdlog::debug("left out {}: {}", p.pass, p.reason);
+        for (const auto& p : r.pruned) spdlog::debug("pruned {}: {}", p.pass, p.reason);
+        for (const auto& a : r.absent) spdlog::debug("absent {}", a);
+    } else {
+        for (const auto& line : groupNotes(r.notes)) spdlog::info("scene: {}", line);
+        if (auto line = leftOutSummary(r); !line.empty()) spdlog::info("{}", line);
+    }
     spdlog::info("{} live passes; memory plan: {} transient planes (aliased from {})",
                  g.executionOrder().size(), g.transientPlaneCount(), g.unaliasedPlaneCount());
 }
@@ -195,8 +203,8 @@ int runGraph(const RunOptions& o) {
                 haveRef = true;
                 errors.push_back(m);
                 progress.clear();
-                spdlog::info("frame {}: {:.2f} ms  relMSE {:.5f}  PSNR {:.2f} dB  SSIM {:.4f}", frame,
-                             exec.lastFrameMs(), m.relMse, m.psnr, m.ssim);
+                spdlog::info("frame {}: {:.2f} ms  relMSE {:.5f}  PSNR {:.2f} dB  SSIM {:.4f}",
+                             frame, exec.lastFrameMs(), m.relMse, m.psnr, m.ssim);
             } catch (const Error& e) {
                 progress.clear();
                 std::cerr << "error: --reference: " << e.what() << "\n";
@@ -207,14 +215,16 @@ int runGraph(const RunOptions& o) {
         for (const auto& t : exec.lastTimes()) passTimes[t.pass].push_back(t.ms);
         if (gVerbose) {
             std::string detail;
-            for (const auto& t : exec.lastTimes()) detail += fmt::format(" {}={:.2f}", t.pass, t.ms);
+            for (const auto& t : exec.lastTimes())
+                detail += fmt::format(" {}={:.2f}", t.pass, t.ms);
             progress.clear();
             spdlog::debug("frame {}: {:.2f} ms{}", frame, exec.lastFrameMs(), detail);
         }
         progress.update(i + 1, frame, exec.lastFrameMs(), write);
         if (gInterrupted) {
             progress.clear();
-            spdlog::warn("interrupted: stopped after frame {}; every written frame is complete", frame);
+            spdlog::warn("interrupted: stopped after frame {}; every written frame is complete",
+                         frame);
             rc = 130;
             break;
         }
@@ -228,12 +238,13 @@ int runGraph(const RunOptions& o) {
             std::sort(v.begin(), v.end());
             return v[v.size() / 2];
         };
-        spdlog::info("{} frames run ({} written{}), median {:.2f} ms per frame, {:.1f} MB of graph "
-                     "memory ({:.0f} bytes per pixel)",
-                     frameTimes.size(), written,
-                     failures ? fmt::format(", {} skipped", failures) : std::string(),
-                     median(frameTimes), exec.memory().peakBytes / 1e6,
-                     double(exec.memory().peakBytes) / double(std::max<size_t>(1, exec.extent().pixels())));
+        spdlog::info(
+            "{} frames run ({} written{}), median {:.2f} ms per frame, {:.1f} MB of graph "
+            "memory ({:.0f} bytes per pixel)",
+            frameTimes.size(), written,
+            failures ? fmt::format(", {} skipped", failures) : std::string(), median(frameTimes),
+            exec.memory().peakBytes / 1e6,
+            double(exec.memory().peakBytes) / double(std::max<size_t>(1, exec.extent().pixels())));
         if (!errors.empty()) {
             double rel = 0, psnr = 0, ssim = 0;
             for (const auto& m : errors) rel += m.relMse, psnr += m.psnr, ssim += m.ssim;
@@ -242,7 +253,8 @@ int runGraph(const RunOptions& o) {
                          measured, errors.size(), rel / n, psnr / n, ssim / n);
         }
         for (const auto& n : compiled->executionOrder())
-            if (passTimes.count(n)) spdlog::debug("  {:<24} {:8.3f} ms median", n, median(passTimes[n]));
+            if (passTimes.count(n))
+                spdlog::debug("  {:<24} {:8.3f} ms median", n, median(passTimes[n]));
     }
     return rc;
 }
@@ -262,20 +274,26 @@ void addRunCommand(CLI::App& app, Action& action) {
                     "Output frames: PATTERN or name=PATTERN (default: kestrel-out/<graph>/)")
         ->expected(1)
         ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
-    cmd->add_option("--frames", o->frames, "Frames to run: 1-100, 1-100x2, 3,4,10-20x2 (default: all found)");
+    cmd->add_option("--frames", o->frames,
+                    "Frames to run: 1-100, 1-100x2, 3,4,10-20x2 (default: all found)");
     cmd->add_option("--set", o->graph.sets, "Override a parameter: pass.param=value (repeatable)")
         ->expected(1)
         ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
-    cmd->add_option("--threads", o->threads, "Worker threads (default: all cores)")->check(CLI::Range(0, 1024));
-    cmd->add_flag("--resume", o->resume, "Skip frames whose output exists, warming history up first");
+    cmd->add_option("--threads", o->threads, "Worker threads (default: all cores)")
+        ->check(CLI::Range(0, 1024));
+    cmd->add_flag("--resume", o->resume,
+                  "Skip frames whose output exists, warming history up first");
     cmd->add_option("--warmup", o->warmup, "Run N frames before the range without writing them")
         ->check(CLI::Range(0, 100000));
-    cmd->add_flag("--skip-bad-frames", o->skipBadFrames, "Skip missing or corrupt frames (history is reset)");
-    cmd->add_option("--reference", o->reference,
-                    "Reference frames: print each frame's error (relMSE, PSNR, SSIM) next to its time");
+    cmd->add_flag("--skip-bad-frames", o->skipBadFrames,
+                  "Skip missing or corrupt frames (history is reset)");
+    cmd->add_option(
+        "--reference", o->reference,
+        "Reference frames: print each frame's error (relMSE, PSNR, SSIM) next to its time");
     cmd->add_option("--ref-layer", o->refLayer, "RGB layer of the reference (default: automatic)");
     cmd->add_option("--size", o->size, "Frame size WxH for graphs without an input pass");
-    cmd->add_option("--out-dir", o->graph.outDir, "Where default outputs and the built-in scene go");
+    cmd->add_option("--out-dir", o->graph.outDir,
+                    "Where default outputs and the built-in scene go");
     cmd->add_flag("-v,--verbose", gVerbose, "Per-frame and per-pass timings, details of errors");
     cmd->callback([&action, o] { action = [o] { return runGraph(*o); }; });
 }

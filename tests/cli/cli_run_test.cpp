@@ -167,3 +167,32 @@ TEST_F(CliRun, WarmupChunkMatchesUnsplitRun) {
     EXPECT_GT(coldDiff, 1e-3)
         << "without warm-up frame 5 should differ (1-spp noise is not averaged)";
 }
+
+// The default log is a few lines before the first frame (notes grouped, the left-out passes
+// counted with the absent inputs that caused them); -v still lists every pass left out.
+TEST_F(CliRun, DefaultLogIsShortAndVerboseHasEveryDetail) {
+    auto runSvgf = [&](std::vector<std::string> extra) {
+        std::vector<std::string> args = {
+            "run",      std::string(KESTREL_SOURCE_DIR) + "/graphs/svgf.json",
+            "--input",  "scene/noisy/frame_####.exr",
+            "--output", "out/s.####.exr",
+            "--frames", "1-2"};
+        args.insert(args.end(), extra.begin(), extra.end());
+        return box.run(args);
+    };
+    auto linesBeforeFrameOne = [](const std::string& log) {
+        std::istringstream s(log);
+        int n = 0;
+        for (std::string l; std::getline(s, l) && l.find("frame 1 (") == std::string::npos;) ++n;
+        return n;
+    };
+    const CliResult quiet = runSvgf({});
+    ASSERT_EQ(quiet.code, 0) << quiet.all();
+    EXPECT_LE(linesBeforeFrameOne(quiet.err), 10) << quiet.err;
+    EXPECT_EQ(quiet.err.find("pruned "), std::string::npos) << quiet.err;
+    EXPECT_NE(quiet.err.find("left out "), std::string::npos) << quiet.err;
+    EXPECT_NE(quiet.err.find("input.diffuse"), std::string::npos) << quiet.err;  // a cause
+    const CliResult verbose = runSvgf({"-v"});
+    ASSERT_EQ(verbose.code, 0) << verbose.all();
+    EXPECT_NE(verbose.err.find("pruned diffuse_demodulate: "), std::string::npos) << verbose.err;
+}
