@@ -28,6 +28,29 @@ void addGroup(Channels& ch, const std::string& layer, const char* comps, std::ve
         ch["ViewLayer." + layer + "." + comps[c]].assign(2, v[size_t(c)]);
 }
 
+/// Frame 5 of blender-street re-written with only `passes` (each "Pass.comps", e.g.
+/// "Combined.RGBA") beside its camera.json, then loaded for `output`.
+PassHarness loadStreetSubset(const std::string& dir, const TempDir& tmp,
+                             const std::vector<std::string>& passes, const std::string& output) {
+    const std::string file = dir + "/noisy/frame_0005.exr";
+    Channels ch;
+    for (const auto& p : passes) {
+        const auto dot = p.find('.');
+        for (char c : p.substr(dot + 1)) {
+            const std::string name = "ViewLayer." + p.substr(0, dot) + "." + c;
+            ch[name] = readChannel(file, name);
+        }
+    }
+    writeExr(tmp.path / "frame_0005.exr", box2(320, 180), ch);
+    std::filesystem::copy_file(dir + "/camera.json", tmp.path / "camera.json");
+    auto h =
+        PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / "frame_####.exr").string()}});
+    h.useOutputs({output});
+    h.ctx.frameNumber = 5;
+    h.run();
+    return h;
+}
+
 }  // namespace
 
 TEST(ExrLoaderDenoisingData, FeaturesStandInForMissingPasses) {
@@ -77,21 +100,8 @@ TEST(ExrLoaderDenoisingData, DenoisingNormalRotatedToWorldMatchesNormalPass) {
         GTEST_SKIP() << "../shared/data/blender-street not present";
     const std::string file = dir + "/noisy/frame_0005.exr";
     TempDir tmp("street-nonormal");
-    Channels ch;
-    for (const char* c : {"R", "G", "B", "A"})
-        ch[std::string("ViewLayer.Combined.") + c] =
-            readChannel(file, std::string("ViewLayer.Combined.") + c);
-    for (const char* c : {"X", "Y", "Z"})
-        ch[std::string("ViewLayer.Denoising Normal.") + c] =
-            readChannel(file, std::string("ViewLayer.Denoising Normal.") + c);
+    auto h = loadStreetSubset(dir, tmp, {"Combined.RGBA", "Denoising Normal.XYZ"}, "normal");
     const int w = 320, hgt = 180;
-    writeExr(tmp.path / "frame_0005.exr", box2(w, hgt), ch);
-    std::filesystem::copy_file(dir + "/camera.json", tmp.path / "camera.json");
-    auto h =
-        PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / "frame_####.exr").string()}});
-    h.useOutputs({"normal"});
-    h.ctx.frameNumber = 5;
-    h.run();
     const std::vector<float> nx = readChannel(file, "ViewLayer.Normal.X"),
                              ny = readChannel(file, "ViewLayer.Normal.Y"),
                              nz = readChannel(file, "ViewLayer.Normal.Z");
@@ -117,19 +127,8 @@ namespace {
 double positionAgreement(const std::string& dir, const std::string& depthPass, double tolerance) {
     const std::string file = dir + "/noisy/frame_0005.exr";
     TempDir tmp("street-noposition");
-    Channels ch;
-    for (const char* c : {"R", "G", "B", "A"})
-        ch[std::string("ViewLayer.Combined.") + c] =
-            readChannel(file, std::string("ViewLayer.Combined.") + c);
-    ch["ViewLayer." + depthPass + ".Z"] = readChannel(file, "ViewLayer." + depthPass + ".Z");
+    auto h = loadStreetSubset(dir, tmp, {"Combined.RGBA", depthPass + ".Z"}, "position");
     const int w = 320, hgt = 180;
-    writeExr(tmp.path / "frame_0005.exr", box2(w, hgt), ch);
-    std::filesystem::copy_file(dir + "/camera.json", tmp.path / "camera.json");
-    auto h =
-        PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / "frame_####.exr").string()}});
-    h.useOutputs({"position"});
-    h.ctx.frameNumber = 5;
-    h.run();
     EXPECT_TRUE(h.scene.hasCamera);
     std::vector<float> truth[3];
     for (int c = 0; c < 3; ++c)
