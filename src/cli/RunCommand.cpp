@@ -13,6 +13,7 @@
 
 #include "Commands.h"
 #include "Common.h"
+#include "Dump.h"
 #include "OutputSafety.h"
 #include "Progress.h"
 #include "ReportSummary.h"
@@ -21,6 +22,8 @@
 #include "kestrel/Log.h"
 
 namespace kestrel::cli {
+
+namespace fs = std::filesystem;
 
 namespace {
 
@@ -38,6 +41,8 @@ struct RunOptions {
     bool skipBadFrames = false;
     std::string size;                 // WxH for graphs without a source
     std::string reference, refLayer;  // print each frame's error against these frames
+    std::vector<std::string> dumps;   // --dump patterns
+    std::string dumpDir;
 };
 
 void logReport(const CompiledGraph& g) {
@@ -75,6 +80,14 @@ int runGraph(const RunOptions& o) {
         CompileOptions copt;
         copt.firstFrame = frames.empty() ? 0 : frames.front();
         compiled = compileGraph(g, plugins->registry, copt);
+        if (!o.dumps.empty()) {  // writers for what the compiled graph computes, then again
+            const auto dumped = matchDumps(*compiled, o.dumps);
+            const fs::path dir =
+                o.dumpDir.empty() ? defaultDumpDir(g, plugins->registry) : fs::path(o.dumpDir);
+            addDumpWriters(g, dumped, dir);
+            compiled = compileGraph(g, plugins->registry, copt);
+            spdlog::info("--dump: {} resources to {}", dumped.size(), dir.string());
+        }
     } catch (const GraphError& e) {
         printGraphError(e, &g);
         return 2;
@@ -292,6 +305,14 @@ void addRunCommand(CLI::App& app, Action& action) {
         "Reference frames: print each frame's error (relMSE, PSNR, SSIM) next to its time");
     cmd->add_option("--ref-layer", o->refLayer, "RGB layer of the reference (default: automatic)");
     cmd->add_option("--size", o->size, "Frame size WxH for graphs without an input pass");
+    cmd->add_option("--dump", o->dumps,
+                    "Also write every frame of the matching resources as float EXR: pass.port "
+                    "or a shell pattern ('*atrous0.color'); repeatable")
+        ->expected(1)
+        ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+    cmd->add_option("--dump-dir", o->dumpDir,
+                    "Folder of the --dump files, named pass.port.####.exr (default: dump/ beside "
+                    "the first output)");
     cmd->add_option("--out-dir", o->graph.outDir,
                     "Where default outputs and the built-in scene go");
     cmd->add_flag("-v,--verbose", gVerbose, "Per-frame and per-pass timings, details of errors");

@@ -196,3 +196,40 @@ TEST_F(CliRun, DefaultLogIsShortAndVerboseHasEveryDetail) {
     ASSERT_EQ(verbose.code, 0) << verbose.all();
     EXPECT_NE(verbose.err.find("pruned diffuse_demodulate: "), std::string::npos) << verbose.err;
 }
+
+// --dump writes every frame of each matching resource as a float EXR (pass.port.####.exr under
+// --dump-dir) and changes nothing else: the output is the same to the bit with every resource
+// dumped (each stays alive until its writer has it, so no in-place output may overwrite it),
+// and the dumped final colour is the output. A pattern that matches nothing is refused.
+TEST_F(CliRun, DumpWritesMatchingResourcesAndChangesNothing) {
+    auto runSvgf = [&](const std::string& out, std::vector<std::string> extra) {
+        std::vector<std::string> args = {
+            "run",      std::string(KESTREL_SOURCE_DIR) + "/graphs/svgf.json",
+            "--input",  "scene/noisy/frame_####.exr",
+            "--output", out + "/s.####.exr",
+            "--set",    "output.pixelType=float",
+            "--frames", "1-3"};
+        args.insert(args.end(), extra.begin(), extra.end());
+        return box.run(args);
+    };
+    const CliResult plain = runSvgf("plain", {});
+    ASSERT_EQ(plain.code, 0) << plain.all();
+    const CliResult dumped = runSvgf("dumped", {"--dump", "*", "--dump-dir", "d"});
+    ASSERT_EQ(dumped.code, 0) << dumped.all();
+    EXPECT_EQ(countFiles(box.work() / "d", ".exr"), 3 * countFiles(box.work() / "d", ".0001.exr"));
+    EXPECT_GT(countFiles(box.work() / "d", ".0001.exr"), 20);  // every live resource
+    for (int f = 1; f <= 3; ++f) {
+        RgbImage a, b, d;
+        const std::string name = frameName("s.", f, ".exr");
+        ASSERT_TRUE(readRgb((box.work() / "plain" / name).string(), a));
+        ASSERT_TRUE(readRgb((box.work() / "dumped" / name).string(), b));
+        ASSERT_TRUE(readRgb(
+            (box.work() / "d" / frameName("single_modulate.color.", f, ".exr")).string(), d));
+        EXPECT_EQ(a.rgb, b.rgb) << "frame " << f;
+        EXPECT_EQ(d.rgb, a.rgb) << "frame " << f;  // the room: no TAA, the modulated colour
+    }
+    const CliResult typo = runSvgf("typo", {"--dump", "*atrous9.color"});
+    EXPECT_EQ(typo.code, 2) << typo.all();
+    EXPECT_NE(typo.err.find("--dump '*atrous9.color' matches no resource"), std::string::npos)
+        << typo.err;
+}
