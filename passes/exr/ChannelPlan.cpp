@@ -23,6 +23,7 @@ std::vector<ChannelRef> Recipe::channels() const {
         for (const auto& f : t)
             for (const auto& c : f) out.push_back(c);
     if (backgroundMask) out.push_back(*backgroundMask);
+    if (skyDepth) out.push_back(*skyDepth);
     return out;
 }
 
@@ -311,6 +312,7 @@ std::set<std::string> applyChannelOverrides(Plan& plan, const std::string& spec,
         int n = r->format == Format::Int32 ? 1 : channelCount(r->format);
         r->terms.clear();
         r->backgroundMask.reset();
+        r->skyDepth.reset();
         r->zeroIsBackground = r->cameraSpace = r->fromDepth = r->rayLength = false;
         r->scale[0] = r->scale[1] = r->scale[2] = r->scale[3] = 1.f;
         if (expr.empty()) {

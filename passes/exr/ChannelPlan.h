@@ -46,6 +46,9 @@ struct Recipe {
     /// for renders without a Position pass (rayLength: the depth is a distance along the ray,
     /// as Cycles' Denoising Depth, not planar)
     bool fromDepth = false, rayLength = false;
+    /// motion: the depth channel that marks the background, where the camera's rotation gives
+    /// the motion (Blender writes 0 there even when the camera turns)
+    std::optional<ChannelRef> skyDepth;
     bool absent = false;
     std::string why;  ///< absent: which channel is missing; present: what is read (for notes)
 

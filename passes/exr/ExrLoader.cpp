@@ -150,10 +150,11 @@ PassDesc ExrLoader::describe() {
     d.paramString("channels", "",
                   "override output channels: out=Layer[*Layer][+...],... e.g. "
                   "albedo=ViewLayer.DiffCol (empty expression: leave the output out)");
-    d.paramEnum("antiAliased", "auto", {"auto", "true", "false"},
-                "whether the render is anti-aliased (the jittered* albedos present); auto: the pixel "
-                "filter camera.json or kestrel.pixelFilterWidth states, else the first frame's "
-                "depth jitter");
+    d.paramEnum(
+        "antiAliased", "auto", {"auto", "true", "false"},
+        "whether the render is anti-aliased (the jittered* albedos present); auto: the pixel "
+        "filter camera.json or kestrel.pixelFilterWidth states, else the first frame's "
+        "depth jitter");
     d.paramInt("maxPixels", int64_t(1) << 27, 1, int64_t(1) << 40,
                "largest data or display window accepted (pixels), checked before allocating; "
                "OpenEXR's per-chunk buffers are held to 16 bytes per maxPixels pixel");
@@ -402,6 +403,7 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
     if (!channelsParam_.empty()) overridden = applyChannelOverrides(plan_, channelsParam_, sets);
     planAntiAliasing(probed.get(), overridden);
     if (!overridden.count("position")) planPositionFromDepth(probed.get());
+    if (!overridden.count("motion")) planSkyMotion();
     note(std::string("layout ") + layoutName(plan_.layout) + " (" + firstPath + ")");
     for (const auto& r : plan_.recipes)
         if (!r.absent) note(r.output + " = " + r.why);
@@ -450,6 +452,32 @@ void ExrLoader::unprojectDepth(FrameContext& ctx, const float* depth, bool rayLe
         unprojectRows(cameraToPixel, *cameraToWorld, depth, rayLength,
                       {asFloats(out, 0), asFloats(out, 1), asFloats(out, 2)}, W, y0, y1);
     });
+}
+
+void ExrLoader::skyMotion(FrameContext& ctx, const float* depth, const ImageView& motion, int W,
+                          int H) const {
+    SceneData prev;
+    if (!ctx.scene || !ctx.scene->hasCamera || !cameras_->fill(frame_ - 1, prev) || !prev.hasCamera)
+        return;  // no previous camera (the shot's first frame): Blender's 0 stays
+    const std::optional<Mat4> cameraToWorld = inverse(ctx.scene->worldToCamera);
+    if (!cameraToWorld) return;
+    const Mat4 cameraToPixel = ctx.scene->worldToPixel * *cameraToWorld;
+    ctx.parallelRows(H, [&](int y0, int y1) {
+        skyMotionRows(cameraToPixel, *cameraToWorld, prev.worldToPixel, depth,
+                      {asFloats(motion, 0), asFloats(motion, 1)}, W, y0, y1);
+    });
+}
+
+void ExrLoader::planSkyMotion() {
+    Recipe& motion = *plan_.find("motion");
+    const Recipe& depth = *plan_.find("depth");
+    // Blender's Vector pass is 0 on the background even when the camera turns
+    // (data/README.md): a sky's history would stay where it was on screen.
+    if (plan_.layout != Layout::Blender || !cameras_ || motion.absent || depth.absent ||
+        !depth.isDirect())
+        return;
+    motion.skyDepth = depth.terms[0][0][0];
+    motion.why += "; on the background from the cameras' rotation";
 }
 
 void ExrLoader::planPositionFromDepth(const ExrInput* first) {
@@ -759,6 +787,8 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
         if (r->cameraSpace && ctx.scene && ctx.scene->hasCamera)
             rotateToWorld(ctx.scene->worldToCamera, out, N);
     }
+    for (const Recipe* r : active)
+        if (r->skyDepth) skyMotion(ctx, dest[*r->skyDepth], io.output(r->output), W, H);
     for (const Recipe* r : active)
         if (r->format == Format::Int32)
             floatsToIds(asFloats(io.output(r->output), 0), N, r->idRule);

@@ -48,6 +48,10 @@ private:
     /// `first`: the probed first file (null for GAMES202), read again for its depth only when
     /// the render does not state its pixel filter.
     void planAntiAliasing(ExrInput* first, const std::set<std::string>& overridden);
+    /// Blender: background motion from the cameras (the Vector pass holds 0 there).
+    void planSkyMotion();
+    void skyMotion(FrameContext& ctx, const float* depth, const ImageView& motion, int W,
+                   int H) const;
     /// position from depth and the camera where the render has no position channels.
     void planPositionFromDepth(const ExrInput* first);
     void unprojectDepth(FrameContext& ctx, const float* depth, bool rayLength, const ImageView& out,

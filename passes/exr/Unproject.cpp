@@ -9,9 +9,33 @@ namespace kestrel::exr {
 /// (z = -d), or, for a ray length, on the unit-depth ray point scaled to that length (a
 /// perspective camera: rays start at the camera). Background (depth <= 0, >= 1e9 or NaN) and
 /// rays the camera cannot invert get (0, 0, 0), the Position pass's background.
+namespace {
+
+/// The camera-space (x, y) on pixel (px, py)'s ray at camera z = zc: (row0 - px row3) . c = 0
+/// and (row1 - py row3) . c = 0 for c = (x, y, zc, 1). False where the camera cannot invert it.
+bool onRay(const Mat4& cameraToPixel, double px, double py, double zc, double& x, double& y) {
+    const auto& A = cameraToPixel.m;
+    double a[4], b[4];
+    for (int k = 0; k < 4; ++k) {
+        a[k] = A[0][k] - px * A[3][k];
+        b[k] = A[1][k] - py * A[3][k];
+    }
+    const double det = a[0] * b[1] - a[1] * b[0];
+    if (!(std::fabs(det) > 1e-12)) return false;
+    const double ra = -(a[2] * zc + a[3]), rb = -(b[2] * zc + b[3]);
+    x = (ra * b[1] - a[1] * rb) / det;
+    y = (a[0] * rb - ra * b[0]) / det;
+    return std::isfinite(x) && std::isfinite(y);
+}
+
+bool isBackground(double d) {
+    return !(d > 0.0) || d >= 1e9;
+}
+
+}  // namespace
+
 void unprojectRows(const Mat4& cameraToPixel, const Mat4& cameraToWorld, const float* depth,
                    bool rayLength, std::array<float*, 3> out, int W, int y0, int y1) {
-    const auto& A = cameraToPixel.m;
     const auto& M = cameraToWorld.m;
     float *ox = out[0], *oy = out[1], *oz = out[2];
     for (int y = y0; y < y1; ++y) {
@@ -20,24 +44,11 @@ void unprojectRows(const Mat4& cameraToPixel, const Mat4& cameraToWorld, const f
             const size_t i = size_t(y) * size_t(W) + size_t(x);
             const double px = x + 0.5, d = depth[i];
             ox[i] = oy[i] = oz[i] = 0.f;
-            if (!(d > 0.0) || d >= 1e9) continue;
-            // (row0 - px row3) . c = 0 and (row1 - py row3) . c = 0 for c = (xc, yc, zc, 1).
-            double a[4], b[4];
-            for (int k = 0; k < 4; ++k) {
-                a[k] = A[0][k] - px * A[3][k];
-                b[k] = A[1][k] - py * A[3][k];
-            }
-            const double det = a[0] * b[1] - a[1] * b[0];
-            if (!(std::fabs(det) > 1e-12)) continue;
-            auto solve = [&](double zc, double& xc, double& yc) {
-                const double ra = -(a[2] * zc + a[3]), rb = -(b[2] * zc + b[3]);
-                xc = (ra * b[1] - a[1] * rb) / det;
-                yc = (a[0] * rb - ra * b[0]) / det;
-            };
+            if (isBackground(d)) continue;
             double xc, yc, zc = -d;
-            solve(zc, xc, yc);
+            if (!onRay(cameraToPixel, px, py, zc, xc, yc)) continue;
             if (rayLength) {  // d is |c|: scale the planar-depth-1 point to that length
-                solve(-1.0, xc, yc);
+                if (!onRay(cameraToPixel, px, py, -1.0, xc, yc)) continue;
                 const double s = d / std::sqrt(xc * xc + yc * yc + 1.0);
                 xc *= s, yc *= s, zc = -s;
             }
@@ -51,6 +62,33 @@ void unprojectRows(const Mat4& cameraToPixel, const Mat4& cameraToWorld, const f
             oz[i] = float(w[2]);
         }
     }
+}
+
+void skyMotionRows(const Mat4& cameraToPixel, const Mat4& cameraToWorld,
+                   const Mat4& prevWorldToPixel, const float* depth, std::array<float*, 2> motion,
+                   int W, int y0, int y1) {
+    const auto& M = cameraToWorld.m;
+    const auto& P = prevWorldToPixel.m;
+    for (int y = y0; y < y1; ++y)
+        for (int x = 0; x < W; ++x) {
+            const size_t i = size_t(y) * size_t(W) + size_t(x);
+            if (!isBackground(depth[i])) continue;
+            const double px = x + 0.5, py = y + 0.5;
+            double xc, yc;
+            if (!onRay(cameraToPixel, px, py, -1.0, xc, yc)) continue;
+            const double c[3] = {xc, yc, -1.0};
+            double dir[3] = {0, 0, 0};  // the ray's world direction: rotation only
+            for (int r = 0; r < 3; ++r)
+                for (int k = 0; k < 3; ++k) dir[r] += double(M[r][k]) * c[k];
+            double q[4] = {0, 0, 0, 0};  // the previous frame's pixel of (dir, 0)
+            for (int r = 0; r < 4; ++r)
+                for (int k = 0; k < 3; ++k) q[r] += double(P[r][k]) * dir[k];
+            if (!(q[3] > 1e-12)) continue;  // behind the previous camera
+            const double mx = q[0] / q[3] - px, my = q[1] / q[3] - py;
+            if (!(std::isfinite(mx) && std::isfinite(my))) continue;
+            motion[0][i] = float(mx);
+            motion[1][i] = float(my);
+        }
 }
 
 }  // namespace kestrel::exr

@@ -13,4 +13,12 @@ namespace kestrel::exr {
 void unprojectRows(const Mat4& cameraToPixel, const Mat4& cameraToWorld, const float* depth,
                    bool rayLength, std::array<float*, 3> out, int W, int y0, int y1);
 
+/// Rows [y0, y1): where depth marks the background (<= 0, >= 1e9 or NaN), the motion to the
+/// previous frame of a point at infinity seen through pixel (x + 0.5, y + 0.5): its direction
+/// projected by the previous frame's worldToPixel (prevWorldToPixel). Other pixels, and
+/// directions behind the previous camera, keep their motion.
+void skyMotionRows(const Mat4& cameraToPixel, const Mat4& cameraToWorld,
+                   const Mat4& prevWorldToPixel, const float* depth, std::array<float*, 2> motion,
+                   int W, int y0, int y1);
+
 }  // namespace kestrel::exr
