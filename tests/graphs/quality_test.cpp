@@ -19,21 +19,12 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "../GraphTestUtil.h"
+
 namespace fs = std::filesystem;
 using namespace kestrel;
 
 namespace {
-
-struct Plugins {
-    PluginLoader loader;
-    Registry registry;
-    Plugins() { loader.loadDirectories({KESTREL_PLUGIN_BUILD_DIR}, registry); }
-};
-
-Plugins& plugins() {
-    static Plugins p;
-    return p;
-}
 
 /// A generated scene, made once per option set in a per-test-binary temp folder.
 fs::path makeScene(const std::string& name, scenegen::SceneOptions opt) {
@@ -85,16 +76,11 @@ RunResult runGraph(const std::string& graphName, const std::string& input, const
     GraphDesc g = loadGraphFile(fs::path(KESTREL_SOURCE_DIR) / "graphs" / graphName);
     applyOverride(g, "input.path=" + nlohmann::json(input).dump());
     for (const auto& s : sets) applyOverride(g, s);
-    std::string marked;
-    for (const auto& e : g.edges)
-        if (e.toPass == "output") marked = e.fromPass + "." + e.fromPort;
-    std::erase_if(g.edges, [](const EdgeDesc& e) { return e.toPass == "output"; });
-    std::erase_if(g.passes, [](const PassNode& p) { return p.name == "output"; });
-    g.outputs.push_back(marked);
+    const std::string marked = testutil::markWriterInput(g);
     CompileOptions copt;
     copt.firstFrame = frames.front();
     copt.inPlace = inPlace;
-    auto compiled = compileGraph(g, plugins().registry, copt);
+    auto compiled = compileGraph(g, testutil::builtPlugins(), copt);
     RunResult r;
     r.executed = compiled->executionOrder();
     r.report = compiled->report();

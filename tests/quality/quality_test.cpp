@@ -33,6 +33,8 @@
 #include <string>
 #include <vector>
 
+#include "../GraphTestUtil.h"
+
 namespace fs = std::filesystem;
 using namespace kestrel;
 
@@ -63,17 +65,6 @@ double minGainDb(const std::string& graph, const std::string& scene) {
 }
 
 constexpr int64_t kFirstFrame = 1, kLastFrame = 12;
-
-struct Plugins {
-    PluginLoader loader;
-    Registry registry;
-    Plugins() { loader.loadDirectories({KESTREL_PLUGIN_BUILD_DIR}, registry); }
-};
-
-Plugins& plugins() {
-    static Plugins p;
-    return p;
-}
 
 struct Scene {
     std::string name;
@@ -181,19 +172,14 @@ eval::RegionStats measure(const fs::path& graph, const fs::path& scene) {
                       ref = (scene / "ref/frame_####.exr").string();
     GraphDesc g = loadGraphFile(graph);
     applyOverride(g, "input.path=" + nlohmann::json(input).dump());
-    std::string marked;
-    for (const auto& e : g.edges)
-        if (e.toPass == "output") marked = e.fromPass + "." + e.fromPort;
-    std::erase_if(g.edges, [](const EdgeDesc& e) { return e.toPass == "output"; });
-    std::erase_if(g.passes, [](const PassNode& p) { return p.name == "output"; });
-    g.outputs.push_back(marked);
+    const std::string marked = testutil::markWriterInput(g);
     CompileOptions copt;
     copt.firstFrame = kFirstFrame;
-    auto compiled = compileGraph(g, plugins().registry, copt);
+    auto compiled = compileGraph(g, testutil::builtPlugins(), copt);
     Parallel parallel(1);  // ctest runs two tests at once on the 2-core machine
     Executor exec(*compiled, parallel);
     exec.beginRun(kFirstFrame, kLastFrame);
-    eval::GBufferReader gbuffers(plugins().registry, input, kFirstFrame);
+    eval::GBufferReader gbuffers(testutil::builtPlugins(), input, kFirstFrame);
     eval::RegionStats stats;
     eval::GBuffer prev;
     for (int64_t f = kFirstFrame; f <= kLastFrame; ++f) {
