@@ -324,6 +324,15 @@ private:
             c_.node(n_).notes.push_back(message);
             c_.g_->report.notes.push_back(c_.node(n_).name + ": " + message);
         }
+        void setFact(std::string key, std::string value) override {
+            c_.g_->report.facts[std::move(key)] = std::move(value);
+        }
+        std::optional<std::string> fact(std::string_view key) const override {
+            const auto& facts = c_.g_->report.facts;
+            const auto it = facts.find(std::string(key));
+            if (it == facts.end()) return std::nullopt;
+            return it->second;
+        }
         int64_t firstFrame() const override { return c_.options_.firstFrame; }
         std::string_view passName() const override { return c_.node(n_).name; }
 

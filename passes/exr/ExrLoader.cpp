@@ -504,7 +504,14 @@ void ExrLoader::planPositionFromDepth(const ExrInput* first) {
 }
 
 void ExrLoader::planAntiAliasing(ExrInput* first, const std::set<std::string>& overridden) {
-    std::optional<AntiAliasing> aa;  // decided once, for the first albedo present
+    if (antiAliasedParam_ != "auto") {
+        antiAliasing_ = {antiAliasedParam_ == "true", "antiAliased parameter " + antiAliasedParam_};
+    } else {
+        const auto stated = statedFilterWidth(first);
+        antiAliasing_ =
+            decideAntiAliasing(stated, stated ? std::nullopt : measureDepthJitter(first));
+    }
+    const AntiAliasing& aa = antiAliasing_;
     for (const auto& o : loaderOutputs()) {
         const char* base = jitteredOf(o.name);
         if (!base || overridden.count(o.name)) continue;
@@ -519,21 +526,13 @@ void ExrLoader::planAntiAliasing(ExrInput* first, const std::set<std::string>& o
             absent("no " + std::string(base) + " (" + albedo.why + ")");
             continue;
         }
-        if (!aa) {
-            if (antiAliasedParam_ != "auto") {
-                aa = {antiAliasedParam_ == "true", "antiAliased parameter " + antiAliasedParam_};
-            } else {
-                const auto stated = statedFilterWidth(first);
-                aa = decideAntiAliasing(stated, stated ? std::nullopt : measureDepthJitter(first));
-            }
-        }
-        if (!aa->antiAliased) {
-            absent(aa->why);
+        if (!aa.antiAliased) {
+            absent(aa.why);
             continue;
         }
         out.terms = albedo.terms;
         out.absent = false;
-        out.why = albedo.why + ": " + aa->why;
+        out.why = albedo.why + ": " + aa.why;
     }
 }
 
@@ -541,6 +540,7 @@ void ExrLoader::resolve(ResolveContext& rc) {
     std::vector<std::string> notes;
     ensurePlan(rc.firstFrame(), &notes);
     for (auto& n : notes) rc.note(std::move(n));
+    rc.setFact("antiAliased", antiAliasing_.antiAliased ? "true" : "false");
     for (const auto& r : plan_.recipes)
         if (r.absent) rc.setAbsent(r.output, r.why);
 }

@@ -13,6 +13,7 @@
 
 #include "ChannelPlan.h"
 #include "ExrInput.h"
+#include "PixelJitter.h"
 #include "SceneMatrices.h"
 #include "kestrel/FramePattern.h"
 #include "kestrel/Kestrel.h"
@@ -48,6 +49,7 @@ private:
     /// `first`: the probed first file (null for GAMES202), read again for its depth only when
     /// the render does not state its pixel filter.
     void planAntiAliasing(ExrInput* first, const std::set<std::string>& overridden);
+    AntiAliasing antiAliasing_;  ///< decided once per run (the "antiAliased" scene fact)
     /// Blender: background motion from the cameras (the Vector pass holds 0 there).
     void planSkyMotion();
     void skyMotion(FrameContext& ctx, const float* depth, const ImageView& motion, int W,

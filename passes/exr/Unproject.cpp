@@ -4,11 +4,6 @@
 
 namespace kestrel::exr {
 
-/// World positions of every pixel from its depth and the frame's camera (worldToCamera,
-/// worldToPixel): the camera-space point on pixel (i + 0.5, j + 0.5)'s ray at planar depth d
-/// (z = -d), or, for a ray length, on the unit-depth ray point scaled to that length (a
-/// perspective camera: rays start at the camera). Background (depth <= 0, >= 1e9 or NaN) and
-/// rays the camera cannot invert get (0, 0, 0), the Position pass's background.
 namespace {
 
 /// The camera-space (x, y) on pixel (px, py)'s ray at camera z = zc: (row0 - px row3) . c = 0
@@ -45,10 +40,11 @@ void unprojectRows(const Mat4& cameraToPixel, const Mat4& cameraToWorld, const f
             const double px = x + 0.5, d = depth[i];
             ox[i] = oy[i] = oz[i] = 0.f;
             if (isBackground(d)) continue;
-            double xc, yc, zc = -d;
+            // Planar depth: the ray's point at z = -d. A ray length (a perspective camera, rays
+            // from the eye): the planar-depth-1 point scaled to that length.
+            double xc, yc, zc = rayLength ? -1.0 : -d;
             if (!onRay(cameraToPixel, px, py, zc, xc, yc)) continue;
-            if (rayLength) {  // d is |c|: scale the planar-depth-1 point to that length
-                if (!onRay(cameraToPixel, px, py, -1.0, xc, yc)) continue;
+            if (rayLength) {
                 const double s = d / std::sqrt(xc * xc + yc * yc + 1.0);
                 xc *= s, yc *= s, zc = -s;
             }

@@ -8,8 +8,11 @@
 
 namespace kestrel::exr {
 
-/// Rows [y0, y1) of a W-wide image: out[c][i] = world position of pixel i. cameraToPixel maps
-/// camera space to pixel coordinates (worldToPixel times the camera-to-world matrix).
+/// Rows [y0, y1) of a W-wide image: out[c][i] = world position of pixel i, the camera-space point
+/// on pixel (x + 0.5, y + 0.5)'s ray at planar depth d (z = -d) or, with rayLength, at distance d
+/// from the eye. cameraToPixel maps camera space to pixel coordinates (worldToPixel times the
+/// camera-to-world matrix). Background (depth <= 0, >= 1e9 or NaN) and rays the camera cannot
+/// invert get (0, 0, 0), the Position pass's background.
 void unprojectRows(const Mat4& cameraToPixel, const Mat4& cameraToWorld, const float* depth,
                    bool rayLength, std::array<float*, 3> out, int W, int y0, int y1);
 

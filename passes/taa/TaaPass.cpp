@@ -225,9 +225,6 @@ PassDesc TaaPass::describe() {
         .optionalInput("resampleBlur", Format::Float,
                        "how much resampling blurred the history, in [0, 1] (Reprojection's "
                        "resampleBlur): the current frame's weight rises towards blurAlpha with it")
-        .optionalInput("antiAliased", Format::Any,
-                       "bound only where the render is anti-aliased (the loader's jitteredAlbedo); "
-                       "never read: with onlyAntiAliased, TAA is left out where it is not bound")
         .paramFloat("alpha", 0.1, 0.0, 1.0, "weight of the current frame in the blend")
         .paramFloat("blurAlpha", 1.0, 0.0, 1.0,
                     "weight of the current frame where the history was resampled midway between "
@@ -237,9 +234,9 @@ PassDesc TaaPass::describe() {
         .paramEnum("mode", "clip", {"clip", "clamp"},
                    "clip: move the history towards the mean onto the box; clamp: per channel")
         .paramBool("onlyAntiAliased", false,
-                   "leave TAA out (pass the colour through) unless antiAliased is bound: on a "
-                   "point-sampled render judged against a point-sampled reference the history "
-                   "has no detail to add")
+                   "leave TAA out (pass the colour through) unless the source states the render "
+                   "is anti-aliased (the scene fact antiAliased): on a point-sampled render "
+                   "judged against a point-sampled reference the history has no detail to add")
         .paramBool("antiFlicker", true,
                    "inverse-luminance blend weights (Karis 2014): damps flicker of bright pixels");
     return d;
@@ -254,9 +251,7 @@ TaaPass::TaaPass(const ParamValues& params)
       onlyAntiAliased_(params.getBool("onlyAntiAliased")) {}
 
 void TaaPass::resolve(ResolveContext& rc) {
-    if (rc.isBound("antiAliased")) {
-        rc.ignoreInput("antiAliased", "a flag (the render is anti-aliased), never read");
-    } else if (onlyAntiAliased_) {
+    if (onlyAntiAliased_ && rc.fact("antiAliased") != "true") {
         rc.forward("color", "color");
         rc.note("point-sampled render: TAA left out (onlyAntiAliased)");
         return;

@@ -17,7 +17,8 @@
 //     Blender sample room: 33.4 dB with the history at full weight, 35.9 with blurAlpha 1,
 //     36.3 without TAA; anti-aliased renders gain from it too once their albedo is averaged
 //     over frames);
-//   - onlyAntiAliased leaves the pass out on point-sampled renders (antiAliased unbound): there
+//   - onlyAntiAliased leaves the pass out on point-sampled renders (the source's scene fact
+//     antiAliased is not "true"): there
 //     the reference is as sharp as each frame, and even the weighted history cost 0.03-0.35 dB
 //     and raised the temporal instability on six of seven point-sampled sequences.
 #include <kestrel/Kestrel.h>

@@ -13,7 +13,8 @@
 
 namespace kestrel::cli {
 
-/// The "pass.port" resources of `compiled` that the patterns match, in execution order. Throws
+/// The "pass.port" resources of `compiled` that the patterns match, in the order the compiled
+/// graph lists its resources. Throws
 /// Error naming a pattern that matches nothing (with what there is).
 std::vector<std::string> matchDumps(const CompiledGraph& compiled,
                                     const std::vector<std::string>& patterns);

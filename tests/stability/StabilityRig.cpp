@@ -41,6 +41,8 @@ public:
     void resolve(ResolveContext& rc) override {
         for (const auto& [name, format] : sourcePorts())
             if (!scenario_->provides.count(name)) rc.setAbsent(name, "scenario lacks it");
+        // As the ExrLoader: a render offering jittered albedos is an anti-aliased one.
+        rc.setFact("antiAliased", scenario_->provides.count("jitteredAlbedo") ? "true" : "false");
     }
     std::optional<Extent> beginFrame(FrameContext& ctx) override {
         frame_.images.clear();

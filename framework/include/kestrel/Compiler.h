@@ -2,6 +2,7 @@
 // The graph compiler: validate -> instantiate -> resolve what the scene provides -> prune ->
 // order -> plan memory. Names ("pass.port") are resolved here, once, into integer handles.
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -32,6 +33,7 @@ struct CompileReport {
     std::vector<LeftOutPass> pruned;  ///< contributes to no output
     std::vector<LeftOutPass> elided;  ///< identity for this scene (outputs forwarded)
     std::vector<std::string> absent;  ///< "pass.port: reason" outputs the scene lacks
+    std::map<std::string, std::string> facts;  ///< scene facts sources stated (ResolveContext)
 };
 
 /// A resource slot: one produced output, possibly sharing memory with others (aliasing).

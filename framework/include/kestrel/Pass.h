@@ -87,6 +87,12 @@ public:
     virtual void ignoreInput(std::string_view /*input*/, std::string /*reason*/) {}
     /// A line for the run log: what the pass adapted and why.
     virtual void note(std::string message) = 0;
+    /// Scene facts a source states at compile time ("antiAliased" = "true"), for passes
+    /// downstream to adapt to without reading an image: resolve runs in dependency order, so a
+    /// source has stated its facts before any pass fed by it resolves. Listed in the report.
+    virtual void setFact(std::string /*key*/, std::string /*value*/) {}
+    /// A fact some source stated, or nullopt.
+    virtual std::optional<std::string> fact(std::string_view /*key*/) const { return std::nullopt; }
     /// Sequence facts a source needs at compile time.
     virtual int64_t firstFrame() const = 0;
     virtual std::string_view passName() const = 0;

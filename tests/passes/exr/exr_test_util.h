@@ -51,11 +51,13 @@ public:
         absent[std::string(output)] = std::move(reason);
     }
     void note(std::string message) override { notes.push_back(std::move(message)); }
+    void setFact(std::string key, std::string value) override { facts[key] = value; }
     int64_t firstFrame() const override { return first_; }
     std::string_view passName() const override { return "loader"; }
 
     std::map<std::string, std::string> absent;
     std::vector<std::string> notes;
+    std::map<std::string, std::string> facts;
 
 private:
     int64_t first_;

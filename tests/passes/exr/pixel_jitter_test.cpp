@@ -101,6 +101,11 @@ TEST(PixelJitter, LoaderOffersJitteredAlbedoOnlyForAntiAliasedRenders) {
     for (const char* c : {"albedo.R", "albedo.G", "albedo.B"}) noAlbedo.erase(c);
     rc = resolveLoader(tmp, noAlbedo, nullptr);
     EXPECT_EQ(rc.absent.count("jitteredAlbedo"), 1u);
+    // The decision itself is a scene fact (TAA's onlyAntiAliased reads it), with or without an
+    // albedo.
+    EXPECT_EQ(rc.facts["antiAliased"], "true");
+    rc = resolveLoader(tmp, canonicalFrame(planeDepth(0.f)), nullptr);
+    EXPECT_EQ(rc.facts["antiAliased"], "false");
 }
 
 // The diffuse/specular split's albedos are averaged like the single albedo: each jittered*

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
+#include <optional>
 #include <random>
 
 #include "TaaPass.h"
@@ -250,9 +252,11 @@ TEST(Taa, BlurredHistoryIsWeightedDown) {
 
 namespace {
 
-/// The compile-time view of one pass: which inputs are bound; what it forwards and ignores.
+/// The compile-time view of one pass: which inputs are bound and which scene facts sources
+/// stated; what it forwards and ignores.
 struct StubResolve : ResolveContext {
     std::vector<std::string> bound, ignored, forwarded;
+    std::map<std::string, std::string> facts;
     bool isBound(std::string_view in) const override {
         return std::find(bound.begin(), bound.end(), in) != bound.end();
     }
@@ -262,33 +266,39 @@ struct StubResolve : ResolveContext {
     void setAbsent(std::string_view, std::string) override {}
     void ignoreInput(std::string_view in, std::string) override { ignored.emplace_back(in); }
     void note(std::string) override {}
+    std::optional<std::string> fact(std::string_view key) const override {
+        const auto it = facts.find(std::string(key));
+        return it == facts.end() ? std::nullopt : std::optional<std::string>(it->second);
+    }
     int64_t firstFrame() const override { return 1; }
     std::string_view passName() const override { return "taa"; }
 };
 
-StubResolve resolveTaa(bool onlyAntiAliased, bool antiAliasedBound, bool history = true) {
+/// `antiAliased`: the source's fact ("" when no source states it).
+StubResolve resolveTaa(bool onlyAntiAliased, const std::string& antiAliased, bool history = true) {
     auto h = PassHarness::make<TaaPass>({4, 4}, {{"onlyAntiAliased", onlyAntiAliased}});
     StubResolve rc;
     rc.bound = {"color", "historyLength", "resampleBlur"};
     if (history) rc.bound.push_back("history");
-    if (antiAliasedBound) rc.bound.push_back("antiAliased");
+    if (!antiAliased.empty()) rc.facts["antiAliased"] = antiAliased;
     h.pass().resolve(rc);
     return rc;
 }
 
 }  // namespace
 
-// onlyAntiAliased leaves TAA out (colour forwarded) where the render is point-sampled (the
-// loader offers no jitteredAlbedo, so antiAliased is unbound); the flag itself is never read.
+// onlyAntiAliased leaves TAA out (colour forwarded) unless the source states that the render is
+// anti-aliased (the loader's scene fact antiAliased); no image is read for it.
 TEST(Taa, OnlyAntiAliasedLeavesThePassOutOnPointSampledRenders) {
     const std::vector<std::string> passThrough{"color<-color"};
-    EXPECT_EQ(resolveTaa(true, false).forwarded, passThrough);
-    const StubResolve aa = resolveTaa(true, true);
+    EXPECT_EQ(resolveTaa(true, "false").forwarded, passThrough);
+    EXPECT_EQ(resolveTaa(true, "").forwarded, passThrough);  // no source says so
+    const StubResolve aa = resolveTaa(true, "true");
     EXPECT_TRUE(aa.forwarded.empty());
-    EXPECT_EQ(aa.ignored, std::vector<std::string>{"antiAliased"});
-    EXPECT_TRUE(resolveTaa(false, false).forwarded.empty());  // runs unless asked otherwise
-    // No history bound: the colour passes through, the flag is still not read.
-    const StubResolve noHistory = resolveTaa(true, true, false);
+    EXPECT_TRUE(aa.ignored.empty());
+    EXPECT_TRUE(resolveTaa(false, "false").forwarded.empty());  // runs unless asked otherwise
+    // No history bound: the colour passes through.
+    const StubResolve noHistory = resolveTaa(true, "true", false);
     EXPECT_EQ(noHistory.forwarded, passThrough);
-    EXPECT_EQ(noHistory.ignored, std::vector<std::string>{"antiAliased"});
+    EXPECT_TRUE(noHistory.ignored.empty());
 }
