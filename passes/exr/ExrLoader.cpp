@@ -402,12 +402,35 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
     std::set<std::string> overridden;
     if (!channelsParam_.empty()) overridden = applyChannelOverrides(plan_, channelsParam_, sets);
     planAntiAliasing(probed.get(), overridden);
+    colorHalf_ = colorStoredAsHalf(probed.get(), first);
     if (!overridden.count("position")) planPositionFromDepth(probed.get());
     if (!overridden.count("motion")) planSkyMotion();
     note(std::string("layout ") + layoutName(plan_.layout) + " (" + firstPath + ")");
     for (const auto& r : plan_.recipes)
         if (!r.absent) note(r.output + " = " + r.why);
     planned_ = true;
+}
+
+bool ExrLoader::colorStoredAsHalf(const ExrInput* first, int64_t frame) const {
+    const Recipe* color = plan_.find("color");
+    if (!color || color->absent) return false;
+    const auto refs = color->channels();
+    if (refs.empty()) return false;
+    for (const auto& ref : refs) {
+        std::unique_ptr<ExrInput> other;  // GAMES202: the role's own file
+        const ExrInput* in = first;
+        if (!ref.file.empty() || !in) {
+            try {
+                other = std::make_unique<ExrInput>(filePath(ref.file, frame), maxPixels_);
+            } catch (const Error&) {
+                return false;  // reported where the frame is read
+            }
+            in = other.get();
+        }
+        const Imf::Channel* c = in->header().channels().findChannel(ref.name);
+        if (!c || c->type != Imf::HALF) return false;
+    }
+    return true;
 }
 
 std::optional<float> ExrLoader::statedFilterWidth(const ExrInput* first) const {
@@ -541,6 +564,9 @@ void ExrLoader::resolve(ResolveContext& rc) {
     ensurePlan(rc.firstFrame(), &notes);
     for (auto& n : notes) rc.note(std::move(n));
     rc.setFact("antiAliased", antiAliasing_.antiAliased ? "true" : "false");
+    // The precision the colour arrives in: a writer with pixelType auto keeps it (a noise-free
+    // float sky written as half loses up to 2^-11 of its value, more than 1 spp's error there).
+    rc.setFact("colorPixelType", colorHalf_ ? "half" : "float");
     for (const auto& r : plan_.recipes)
         if (r.absent) rc.setAbsent(r.output, r.why);
 }

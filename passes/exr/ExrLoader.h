@@ -59,6 +59,8 @@ private:
     void unprojectDepth(FrameContext& ctx, const float* depth, bool rayLength, const ImageView& out,
                         int W, int H) const;
     std::optional<float> statedFilterWidth(const ExrInput* first) const;
+    /// Whether the colour's channels are half in the first frame (GAMES202: its beauty file).
+    bool colorStoredAsHalf(const ExrInput* first, int64_t frame) const;
     std::optional<float> measureDepthJitter(ExrInput* first) const;
 
     /// Decoded file channels of one frame, read ahead on a background thread while the graph
@@ -85,6 +87,7 @@ private:
     std::string games202Dir_, games202Tail_;  // "dir/" and "_%d.exr" around the role name
     std::unique_ptr<BlenderCameras> cameras_;
     bool games202Matrices_ = false;
+    bool colorHalf_ = false;  // every channel of the colour is stored as half
 
     // this frame's open files (headers read in beginFrame / on first use)
     int64_t frame_ = 0;

@@ -165,8 +165,10 @@ PassDesc ExrWriter::describe() {
                "tone-mapped PNG preview");
     d.input("color", Format::Any, "image to write (1-4 float channels as R,G,B,A; Int32 as id)");
     d.paramString("path", "out/frame.####.exr", "output frame pattern (####, @, %04d)");
-    d.paramEnum("pixelType", "half", {"half", "float"},
-                "EXR pixel type of float channels (ids are always float)");
+    d.paramEnum("pixelType", "auto", {"auto", "half", "float"},
+                "EXR pixel type of float channels (ids are always float); auto: half where the "
+                "source states its colour is half (the scene fact colorPixelType), else float, "
+                "so the output keeps the input's precision");
     d.paramEnum("compression", "zip", kCompressions, "EXR compression");
     d.paramInt("zipLevel", 4, 1, 12,
                "deflate level of zip and zips (libdeflate): 1 fastest, 12 smallest; 4 is "
@@ -180,7 +182,8 @@ PassDesc ExrWriter::describe() {
 
 ExrWriter::ExrWriter(const ParamValues& p)
     : path_(p.getString("path")),
-      half_(p.getString("pixelType") == "half"),
+      pixelType_(p.getString("pixelType")),
+      half_(pixelType_ == "half"),
       compression_(p.getString("compression")),
       zipLevel_(int(p.getInt("zipLevel"))),
       exposure_(p.getFloat("exposure")) {
@@ -191,6 +194,13 @@ ExrWriter::ExrWriter(const ParamValues& p)
     toneMap_ = tm == "reinhard" ? ToneMap::Reinhard
                : tm == "clamp"  ? ToneMap::Clamp
                                 : ToneMap::Aces;
+}
+
+void ExrWriter::resolve(ResolveContext& rc) {
+    if (pixelType_ != "auto") return;
+    half_ = rc.fact("colorPixelType") == "half";
+    rc.note(std::string("writes ") + (half_ ? "half" : "float") +
+            " pixels, as the source's colour (pixelType auto)");
 }
 
 void ExrWriter::beginRun(const RunContext& rc) {

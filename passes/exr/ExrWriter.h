@@ -19,6 +19,7 @@ public:
     static PassDesc describe();
     explicit ExrWriter(const ParamValues& params);
 
+    void resolve(ResolveContext& rc) override;
     void beginRun(const RunContext& rc) override;
     void execute(FrameContext& ctx, PassIO& io) override;
     bool frameWritten(int64_t frame) const override;
@@ -30,7 +31,8 @@ private:
 
     FramePattern path_;
     std::unique_ptr<FramePattern> preview_;
-    bool half_;
+    std::string pixelType_;  // half, float or auto (the source's, resolved at compile time)
+    bool half_ = false;
     std::string compression_;
     int zipLevel_;
     float exposure_;

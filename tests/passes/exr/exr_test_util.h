@@ -7,6 +7,7 @@
 
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -52,6 +53,11 @@ public:
     }
     void note(std::string message) override { notes.push_back(std::move(message)); }
     void setFact(std::string key, std::string value) override { facts[key] = value; }
+    std::optional<std::string> fact(std::string_view key) const override {
+        auto it = facts.find(std::string(key));
+        if (it == facts.end()) return std::nullopt;
+        return it->second;
+    }
     int64_t firstFrame() const override { return first_; }
     std::string_view passName() const override { return "loader"; }
 

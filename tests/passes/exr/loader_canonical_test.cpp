@@ -57,6 +57,7 @@ TEST(ExrLoaderCanonical, ValuesIdsAndMatrices) {
     auto h = PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / "f.####.exr").string()}});
     RecordingResolve rc(1);
     h.pass().resolve(rc);
+    EXPECT_EQ(rc.facts["colorPixelType"], "float");  // a writer with pixelType auto keeps float
     EXPECT_EQ(rc.absent.count("color"), 0u);
     EXPECT_EQ(rc.absent.count("objectId"), 0u);
     ASSERT_EQ(rc.absent.count("emission"), 1u);
@@ -92,6 +93,9 @@ TEST(ExrLoaderCanonical, HalfTiledPiz) {
     opt.compression = Imf::PIZ_COMPRESSION;
     writeExr(tmp.path / "t.exr", box(0, 0, W - 1, H - 1), ch, opt);
     auto h = PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / "t.exr").string()}});
+    RecordingResolve rc(1);
+    h.pass().resolve(rc);
+    EXPECT_EQ(rc.facts["colorPixelType"], "half");
     h.useOutputs({"color"});
     h.run();
     for (int y = 0; y < H; ++y)

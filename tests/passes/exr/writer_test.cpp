@@ -46,7 +46,7 @@ TEST(ExrWriter, HalfClampsOutOfRangeAndNaNWithoutInf) {
     img.at(2, 2, 0) = std::numeric_limits<float>::infinity();
     img.at(0, 3, 1) = std::numeric_limits<float>::quiet_NaN();
     img.at(1, 3, 1) = 0.333f;
-    auto h = writer(tmp.path);
+    auto h = writer(tmp.path, {{"pixelType", std::string("half")}});
     beginRun(h, 5);
     h.bind("color", img);
     h.ctx.frameNumber = 5;
@@ -62,6 +62,29 @@ TEST(ExrWriter, HalfClampsOutOfRangeAndNaNWithoutInf) {
         for (float v : *ch) EXPECT_TRUE(std::isfinite(v));
     Imf::InputFile in(file.c_str());
     EXPECT_EQ(in.header().channels().findChannel("R")->type, Imf::HALF);
+}
+
+/// pixelType auto keeps the source's precision: float unless the source states half colour.
+static Imf::PixelType writtenType(std::optional<std::string> sourceColor) {
+    TempDir tmp("wauto");
+    Image img(4, 2, Format::Float3);
+    img.fill(1.f + 1.f / 4096.f);  // between two halves: only float keeps it
+    auto h = writer(tmp.path);
+    RecordingResolve rc(1);
+    if (sourceColor) rc.facts["colorPixelType"] = *sourceColor;
+    h.pass().resolve(rc);
+    beginRun(h, 1);
+    h.bind("color", img);
+    h.ctx.frameNumber = 1;
+    h.run();
+    Imf::InputFile in((tmp.path / "out.0001.exr").c_str());
+    return in.header().channels().findChannel("R")->type;
+}
+
+TEST(ExrWriter, AutoPixelTypeKeepsTheSourcesPrecision) {
+    EXPECT_EQ(writtenType(std::nullopt), Imf::FLOAT);  // no source statement: lose nothing
+    EXPECT_EQ(writtenType("float"), Imf::FLOAT);
+    EXPECT_EQ(writtenType("half"), Imf::HALF);
 }
 
 TEST(ExrWriter, AtomicNoTemporaryLeftAndProvenanceStored) {
