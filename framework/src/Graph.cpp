@@ -224,11 +224,12 @@ void applyOverride(GraphDesc& graph, const std::string& assignment) {
     }
     // A pattern (*, ?, [..]) sets the parameter on every pass whose name matches: e.g.
     // '*atrous*.exact=true' for all A-Trous iterations of every chain. A group instance's
-    // parameter (diffuse.sigmaL) goes to every inner parameter bound to it.
+    // parameter (diffuse.sigmaL) goes to every inner parameter bound to it; a pattern that
+    // matches instances with that group parameter ('*.sigmaL') sets it on them only, not on
+    // every pass the pattern also matches.
     const bool pattern = pass.find_first_of("*?[") != std::string::npos;
-    const bool groups = overrideInstances(graph, pass, param, value, pattern);
-    const bool passes = overridePasses(graph, pass, param, value, pattern);
-    if (groups || passes) return;
+    if (overrideInstances(graph, pass, param, value, pattern)) return;
+    if (overridePasses(graph, pass, param, value, pattern)) return;
     std::string known, groupParams;
     for (const auto& p : graph.passes) known += (known.empty() ? "" : ", ") + p.name;
     for (const auto& i : graph.instances)

@@ -92,8 +92,9 @@ bool splitPassPort(const std::string& s, std::string& pass, std::string& port);
 /// Applies `pass.param=value` overrides (value parsed as JSON, else taken as a string). `pass`
 /// may be a shell pattern (`*atrous*`): every matching pass gets the value. `pass` may also name
 /// a group instance and `param` one of its group parameters (`diffuse.sigmaL=6`): every inner
-/// parameter bound to it gets the value. A name or pattern matching nothing is an Error naming
-/// the override.
+/// parameter bound to it gets the value. A pattern matching instances with that group parameter
+/// (`*.sigmaL`) sets the group parameter only. A name or pattern matching nothing is an Error
+/// naming the override.
 void applyOverride(GraphDesc& graph, const std::string& assignment);
 
 }  // namespace kestrel
