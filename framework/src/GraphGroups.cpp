@@ -762,7 +762,6 @@ void expandDocument(const json& doc, const fs::path& source, GraphDesc& g,
     }
     Assembler assembler(docs, diags);
     Assembly a = assembler.assemble(doc, source, "");
-    if (!diags.empty()) return;  // expanding a half-read document would only add noise
     Expander(g, docs, diags).expandTop(a);
 }
 
