@@ -63,6 +63,10 @@ std::string firstComponent(const std::string& s) {
     return s.substr(0, s.find('.'));
 }
 
+std::string listOrNone(const std::vector<std::string>& v) {
+    return v.empty() ? "none" : join(v);
+}
+
 /// obj[key] as names (without '.'); problems are reported at `keyPath`.
 std::vector<std::string> stringList(const json& obj, const char* key, const std::string& keyPath,
                                     std::vector<Diagnostic>& diags) {
@@ -435,7 +439,7 @@ private:
         return "instance '" + inst + "' (group " + i.group + ") has no " +
                (input ? "input '" : "output '") + port + "' (" +
                (input ? "inputs: " : "outputs: ") +
-               (input ? join(i.inputNames) : join(i.outputNames)) + ")";
+               listOrNone(input ? i.inputNames : i.outputNames) + ")";
     }
 
     /// "$name" -> the group parameter's value; "$$x" -> the string "$x". Anything else as is.
@@ -661,7 +665,7 @@ private:
             if (std::find(s.iface->inputNames.begin(), s.iface->inputNames.end(), rest) ==
                 s.iface->inputNames.end()) {
                 diags_.push_back({path, "group '" + s.iface->group + "' declares no input '" +
-                                            rest + "' (inputs: " + join(s.iface->inputNames) +
+                                            rest + "' (inputs: " + listOrNone(s.iface->inputNames) +
                                             ")"});
                 return false;
             }
@@ -717,7 +721,7 @@ private:
         const auto& names = s.iface->outputNames;
         if (std::find(names.begin(), names.end(), name) == names.end())
             diags_.push_back({path, "group '" + s.iface->group + "' declares no output '" + name +
-                                        "' (outputs: " + join(names) + ")"});
+                                        "' (outputs: " + listOrNone(names) + ")"});
         else if (src.groupInput)
             diags_.push_back({path,
                               "a group output must come from a pass inside the group, not "
