@@ -2,6 +2,7 @@
 
 #include <fnmatch.h>
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
@@ -90,13 +91,16 @@ std::string readGraphText(const std::filesystem::path& path) {
     checkGraphFile(path);
     std::ifstream in(path, std::ios::binary);
     if (!in) throw Error("cannot read graph file " + path.string());
-    // Read at most one byte past the limit: the file may have grown since it was checked.
-    std::string text(kMaxGraphBytes + 1, '\0');
-    in.read(text.data(), std::streamsize(text.size()));
-    text.resize(size_t(in.gcount()));
-    if (text.size() > kMaxGraphBytes)
-        throw Error("graph file " + path.string() +
-                    " is larger than 16 MiB (is it the right file?)");
+    // Read in chunks and stop past the limit: the file may have grown since it was checked.
+    // (Not one 16 MiB buffer per file: a graph and its includes are a few kilobytes each.)
+    std::string text;
+    std::array<char, 64 * 1024> chunk;
+    while (in.read(chunk.data(), std::streamsize(chunk.size())) || in.gcount() > 0) {
+        text.append(chunk.data(), size_t(in.gcount()));
+        if (text.size() > kMaxGraphBytes)
+            throw Error("graph file " + path.string() +
+                        " is larger than 16 MiB (is it the right file?)");
+    }
     return text;
 }
 
