@@ -2,6 +2,7 @@
 #include "kestrel/Compiler.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -49,7 +50,7 @@ public:
         checkOutputs();
         if (diags_.empty()) order();
         if (diags_.empty()) construct();
-        if (!diags_.empty()) throw GraphError(std::move(diags_));
+        if (!diags_.empty()) throw GraphError(relocate(std::move(diags_)));
         if (options_.validateOnly) return std::move(g_);
         resolve();
         markLive();
@@ -63,6 +64,36 @@ private:
     const EdgeDesc& edge(int e) { return g_->desc.edges[size_t(e)]; }
     std::string portName(PortRef r) {
         return node(r.node).name + "." + descOf(r.node).ports[size_t(r.port)].name;
+    }
+
+    /// Diagnostics name passes and edges by their index in the flat graph; the user wrote them
+    /// elsewhere (an instance expands to many passes, a group may live in another file). Each
+    /// gets the JSON path where it is written, and the pass (parameter) it concerns by name.
+    std::vector<Diagnostic> relocate(std::vector<Diagnostic> diags) const {
+        const GraphDesc& d = g_->desc;
+        for (auto& diag : diags) {
+            size_t index = 0;
+            int consumed = 0;
+            if (std::sscanf(diag.path.c_str(), "passes[%zu]%n", &index, &consumed) == 1 &&
+                consumed > 0 && index < d.passes.size()) {
+                const PassNode& n = d.passes[index];
+                const std::string rest = diag.path.substr(size_t(consumed));
+                diag.label = n.name;
+                const std::string params = ".params.";
+                if (rest.rfind(params, 0) == 0) {
+                    const std::string key = rest.substr(params.size());
+                    diag.label += "." + key;
+                    if (auto b = n.boundParams.find(key.substr(0, key.find('.')));
+                        b != n.boundParams.end())
+                        diag.message += " (set by group parameter " + b->second + ")";
+                }
+                if (!n.origin.empty()) diag.path = n.origin + rest;
+            } else if (std::sscanf(diag.path.c_str(), "edges[%zu]%n", &index, &consumed) == 1 &&
+                       consumed > 0 && index < d.edges.size() && !d.edges[index].origin.empty()) {
+                diag.path = d.edges[index].origin + diag.path.substr(size_t(consumed));
+            }
+        }
+        return diags;
     }
 
     void instantiate() {
@@ -176,7 +207,8 @@ private:
         for (size_t i = 0; i < g_->desc.outputs.size(); ++i) {
             const std::string& o = g_->desc.outputs[i];
             std::string path = "outputs[" + std::to_string(i) + "]";
-            auto dot = o.find('.');
+            // "pass" or "pass.port"; pass names of group instances contain dots themselves.
+            auto dot = byName_.count(o) ? std::string::npos : o.rfind('.');
             std::string pass = o.substr(0, dot);
             int n = findNode(pass, path);
             if (n < 0 || !node(n).type) continue;
@@ -657,10 +689,10 @@ std::string CompiledGraph::toDot() const {
     std::map<std::string, std::string> leftOut;
     for (const auto& p : g.report.pruned) leftOut[p.pass] = "pruned: " + p.reason;
     for (const auto& p : g.report.elided) leftOut[p.pass] = "left out: " + p.reason;
-    for (const auto& n : g.nodes) {
+    auto node = [&](const NodeState& n, const std::string& indent) {
         std::string type = n.type ? n.type->desc.type : "?";
-        o << "  \"" << dotEscape(n.name) << "\" [label=\"" << dotEscape(n.name) << "\\n(" << type
-          << ")";
+        o << indent << "\"" << dotEscape(n.name) << "\" [label=\"" << dotEscape(n.name) << "\\n("
+          << type << ")";
         auto it = leftOut.find(n.name);
         if (it != leftOut.end())
             o << "\\n"
@@ -668,7 +700,33 @@ std::string CompiledGraph::toDot() const {
               << "\", style=\"rounded,dashed\", color=gray50, fontcolor=gray50];\n";
         else
             o << "\", style=\"rounded,filled\", fillcolor=\"#dde8f5\"];\n";
-    }
+    };
+    // Group instances are clusters (nested instances inside their parent's cluster), each
+    // holding the passes expanded from it.
+    const auto& instances = g.desc.instances;
+    auto parentOf = [&](const std::string& path) {
+        std::string parent;
+        for (const auto& i : instances)
+            if (path.size() > i.path.size() + 1 && path.rfind(i.path + ".", 0) == 0 &&
+                i.path.size() > parent.size())
+                parent = i.path;
+        return parent;
+    };
+    std::function<void(const std::string&, const std::string&)> cluster =
+        [&](const std::string& path, const std::string& indent) {
+            for (size_t i = 0; i < g.nodes.size(); ++i)
+                if (i < g.desc.passes.size() && g.desc.passes[i].instance == path)
+                    node(g.nodes[i], indent);
+            for (const auto& inst : instances) {
+                if (parentOf(inst.path) != path) continue;
+                o << indent << "subgraph \"cluster_" << dotEscape(inst.path) << "\" {\n"
+                  << indent << "  label=\"" << dotEscape(inst.path) << " (" << dotEscape(inst.group)
+                  << ")\"; style=\"rounded\"; color=\"#7f8c8d\";\n";
+                cluster(inst.path, indent + "  ");
+                o << indent << "}\n";
+            }
+        };
+    cluster("", "  ");
     for (const auto& e : g.desc.edges) {
         std::string label = dotEscape(e.fromPort + " -> " + e.toPort);
         // Which memory the edge's resource lives in: planes shared by several resources alias.

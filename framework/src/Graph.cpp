@@ -2,12 +2,15 @@
 
 #include <fnmatch.h>
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
+
+#include "GraphInternal.h"
 
 namespace kestrel {
 
@@ -27,26 +30,6 @@ std::pair<size_t, size_t> lineColumn(const std::string& text, size_t offset) {
     return {line, col};
 }
 
-bool splitPassPort(const std::string& s, std::string& pass, std::string& port) {
-    auto dot = s.find('.');
-    if (dot == std::string::npos || dot == 0 || dot + 1 == s.size()) return false;
-    if (s.find('.', dot + 1) != std::string::npos) return false;
-    pass = s.substr(0, dot);
-    port = s.substr(dot + 1);
-    return true;
-}
-
-void checkKeys(const json& obj, const std::set<std::string>& allowed, const std::string& path,
-               std::vector<Diagnostic>& diags) {
-    for (const auto& [k, v] : obj.items())
-        if (!allowed.count(k)) {
-            std::string list;
-            for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-            diags.push_back(
-                {path + "." + k, "unknown key '" + k + "' (expected one of: " + list + ")"});
-        }
-}
-
 /// nlohmann's message without its "[json.exception.out_of_range.406] " tag, with the reason
 /// for a number overflow ("number overflow parsing '1e999'" alone does not say what the limit is).
 std::string jsonProblem(const json::exception& e) {
@@ -58,148 +41,6 @@ std::string jsonProblem(const json::exception& e) {
     return msg;
 }
 
-}  // namespace
-
-GraphDesc parseGraph(const std::string& text, const std::filesystem::path& source) {
-    const std::string where = source.empty() ? std::string("graph") : source.string();
-    json doc;
-    try {
-        doc = json::parse(text);
-    } catch (const json::parse_error& e) {
-        auto [line, col] = lineColumn(text, e.byte == 0 ? 0 : e.byte - 1);
-        std::string msg = e.what();
-        // nlohmann's message: "[json.exception.parse_error.101] parse error at line 1, column 2:
-        // syntax error while parsing value - ..." — keep the part after "syntax error".
-        auto pos = msg.find("syntax error");
-        std::string detail = pos == std::string::npos ? msg : msg.substr(pos);
-        throw GraphError(
-            std::vector<Diagnostic>{{"", where + ":" + std::to_string(line) + ":" +
-                                             std::to_string(col) + ": JSON " + detail}});
-    } catch (const json::exception& e) {
-        // Other parser errors (e.g. out_of_range.406 "number overflow parsing '1e400'") must be
-        // a GraphError too, not escape to the caller (found by fuzz/graph_fuzzer seed errors.json).
-        throw GraphError(std::vector<Diagnostic>{{"", where + ": JSON " + jsonProblem(e)}});
-    }
-    GraphDesc g;
-    g.sourcePath = source;
-    std::vector<Diagnostic> diags;
-    if (!doc.is_object())
-        throw GraphError(std::vector<Diagnostic>{{"", "expected a JSON object at the top level"}});
-    checkKeys(doc, {"kestrel", "name", "comment", "passes", "edges", "outputs"}, "", diags);
-    for (auto& d : diags) d.path = d.path.substr(1);
-
-    if (!doc.contains("kestrel"))
-        diags.push_back({"kestrel", "missing graph format version (expected \"kestrel\": " +
-                                        std::to_string(kGraphFormatVersion) + ")"});
-    else if (!doc["kestrel"].is_number_integer() ||
-             doc["kestrel"].get<int>() != kGraphFormatVersion)
-        diags.push_back({"kestrel", "unsupported graph format version " + doc["kestrel"].dump() +
-                                        " (this kestrel reads version " +
-                                        std::to_string(kGraphFormatVersion) + ")"});
-    if (doc.contains("name")) {
-        if (doc["name"].is_string())
-            g.name = doc["name"];
-        else
-            diags.push_back({"name", "expected string, got " + doc["name"].dump()});
-    }
-    if (g.name.empty()) g.name = source.empty() ? "graph" : source.stem().string();
-    if (doc.contains("comment") && doc["comment"].is_string()) g.comment = doc["comment"];
-
-    std::set<std::string> names;
-    if (!doc.contains("passes") || !doc["passes"].is_array()) {
-        diags.push_back({"passes", "expected an array of passes"});
-    } else {
-        const auto& passes = doc["passes"];
-        for (size_t i = 0; i < passes.size(); ++i) {
-            std::string p = "passes[" + std::to_string(i) + "]";
-            const auto& jp = passes[i];
-            if (!jp.is_object()) {
-                diags.push_back({p, "expected an object with name and type"});
-                continue;
-            }
-            checkKeys(jp, {"name", "type", "params", "comment"}, p, diags);
-            PassNode n;
-            if (!jp.contains("name") || !jp["name"].is_string() ||
-                jp["name"].get<std::string>().empty())
-                diags.push_back({p + ".name", "expected a non-empty string"});
-            else
-                n.name = jp["name"];
-            if (n.name.find('.') != std::string::npos)
-                diags.push_back({p + ".name", "pass name '" + n.name + "' must not contain '.'"});
-            if (!jp.contains("type") || !jp["type"].is_string())
-                diags.push_back({p + ".type", "expected a pass type name (string)"});
-            else
-                n.type = jp["type"];
-            if (jp.contains("params")) {
-                if (!jp["params"].is_object())
-                    diags.push_back(
-                        {p + ".params", "expected an object, got " + jp["params"].dump()});
-                else
-                    n.paramsJson = jp["params"].dump();
-            }
-            if (jp.contains("comment") && jp["comment"].is_string()) n.comment = jp["comment"];
-            if (!n.name.empty() && !names.insert(n.name).second)
-                diags.push_back({p + ".name", "duplicate pass name '" + n.name + "'"});
-            g.passes.push_back(std::move(n));
-        }
-    }
-    if (doc.contains("edges")) {
-        const auto& edges = doc["edges"];
-        if (!edges.is_array())
-            diags.push_back({"edges", "expected an array of edges"});
-        else
-            for (size_t i = 0; i < edges.size(); ++i) {
-                std::string p = "edges[" + std::to_string(i) + "]";
-                const auto& je = edges[i];
-                if (!je.is_object()) {
-                    diags.push_back({p, "expected an object with from and to"});
-                    g.edges.push_back({});
-                    continue;
-                }
-                checkKeys(je, {"from", "to", "history", "comment"}, p, diags);
-                EdgeDesc e;
-                for (const char* key : {"from", "to"}) {
-                    std::string pass, port;
-                    if (!je.contains(key) || !je[key].is_string() ||
-                        !splitPassPort(je[key].get<std::string>(), pass, port)) {
-                        diags.push_back(
-                            {p + "." + key, std::string("expected \"pass.port\", got ") +
-                                                (je.contains(key) ? je[key].dump() : "nothing")});
-                        continue;
-                    }
-                    if (std::string(key) == "from")
-                        e.fromPass = pass, e.fromPort = port;
-                    else
-                        e.toPass = pass, e.toPort = port;
-                }
-                if (je.contains("history")) {
-                    if (!je["history"].is_boolean())
-                        diags.push_back({p + ".history",
-                                         "expected true or false, got " + je["history"].dump()});
-                    else
-                        e.history = je["history"];
-                }
-                g.edges.push_back(std::move(e));
-            }
-    }
-    if (doc.contains("outputs")) {
-        const auto& outs = doc["outputs"];
-        if (!outs.is_array())
-            diags.push_back({"outputs", "expected an array of \"pass.port\" strings"});
-        else
-            for (size_t i = 0; i < outs.size(); ++i) {
-                if (!outs[i].is_string() || outs[i].get<std::string>().empty())
-                    diags.push_back({"outputs[" + std::to_string(i) + "]",
-                                     "expected \"pass.port\" or \"pass\""});
-                else
-                    g.outputs.push_back(outs[i]);
-            }
-    }
-    if (!diags.empty()) throw GraphError(std::move(diags));
-    return g;
-}
-
-namespace {
 // A graph is a few kilobytes; anything far larger is the wrong file (a frame, /dev/urandom).
 constexpr std::uintmax_t kMaxGraphBytes = 16u << 20;
 
@@ -221,27 +62,156 @@ void checkGraphFile(const std::filesystem::path& path) {
         throw Error("graph file " + path.string() + " is " + std::to_string(size) +
                     " bytes; a graph is at most 16 MiB (is it the right file?)");
 }
+
 }  // namespace
 
-GraphDesc loadGraphFile(const std::filesystem::path& path) {
+namespace detail {
+
+json parseJsonText(const std::string& text, const std::string& where) {
+    try {
+        return json::parse(text);
+    } catch (const json::parse_error& e) {
+        auto [line, col] = lineColumn(text, e.byte == 0 ? 0 : e.byte - 1);
+        std::string msg = e.what();
+        // nlohmann's message: "[json.exception.parse_error.101] parse error at line 1, column 2:
+        // syntax error while parsing value - ..." — keep the part after "syntax error".
+        auto pos = msg.find("syntax error");
+        std::string detail = pos == std::string::npos ? msg : msg.substr(pos);
+        throw GraphError(
+            std::vector<Diagnostic>{{"", where + ":" + std::to_string(line) + ":" +
+                                             std::to_string(col) + ": JSON " + detail}});
+    } catch (const json::exception& e) {
+        // Other parser errors (e.g. out_of_range.406 "number overflow parsing '1e400'") must be
+        // a GraphError too, not escape to the caller (found by fuzz/graph_fuzzer seed errors.json).
+        throw GraphError(std::vector<Diagnostic>{{"", where + ": JSON " + jsonProblem(e)}});
+    }
+}
+
+std::string readGraphText(const std::filesystem::path& path) {
     checkGraphFile(path);
     std::ifstream in(path, std::ios::binary);
     if (!in) throw Error("cannot read graph file " + path.string());
-    // Read at most one byte past the limit: the file may have grown since it was checked.
-    std::string text(kMaxGraphBytes + 1, '\0');
-    in.read(text.data(), std::streamsize(text.size()));
-    text.resize(size_t(in.gcount()));
-    if (text.size() > kMaxGraphBytes)
-        throw Error("graph file " + path.string() +
-                    " is larger than 16 MiB (is it the right file?)");
-    return parseGraph(text, path);
+    // Read in chunks and stop past the limit: the file may have grown since it was checked.
+    // (Not one 16 MiB buffer per file: a graph and its includes are a few kilobytes each.)
+    std::string text;
+    std::array<char, 64 * 1024> chunk;
+    while (in.read(chunk.data(), std::streamsize(chunk.size())) || in.gcount() > 0) {
+        text.append(chunk.data(), size_t(in.gcount()));
+        if (text.size() > kMaxGraphBytes)
+            throw Error("graph file " + path.string() +
+                        " is larger than 16 MiB (is it the right file?)");
+    }
+    return text;
 }
+
+void checkKeys(const json& obj, const std::set<std::string>& allowed, const std::string& path,
+               std::vector<Diagnostic>& diags) {
+    for (const auto& [k, v] : obj.items())
+        if (!allowed.count(k)) {
+            std::string list;
+            for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+            diags.push_back({(path.empty() ? "" : path + ".") + k,
+                             "unknown key '" + k + "' (expected one of: " + list + ")"});
+        }
+}
+
+void checkVersion(const json& doc, const std::string& prefix, std::vector<Diagnostic>& diags) {
+    if (!doc.contains("kestrel"))
+        diags.push_back(
+            {prefix + "kestrel", "missing graph format version (expected \"kestrel\": " +
+                                     std::to_string(kGraphFormatVersion) + ")"});
+    else if (!doc["kestrel"].is_number_integer() ||
+             doc["kestrel"].get<int>() != kGraphFormatVersion)
+        diags.push_back({prefix + "kestrel", "unsupported graph format version " +
+                                                 doc["kestrel"].dump() +
+                                                 " (this kestrel reads version " +
+                                                 std::to_string(kGraphFormatVersion) + ")"});
+}
+
+}  // namespace detail
+
+bool splitPassPort(const std::string& s, std::string& pass, std::string& port) {
+    auto dot = s.rfind('.');
+    if (dot == std::string::npos || dot == 0 || dot + 1 == s.size()) return false;
+    if (s[dot - 1] == '.' || s.front() == '.') return false;  // "a..b", ".a.b"
+    pass = s.substr(0, dot);
+    port = s.substr(dot + 1);
+    return true;
+}
+
+GraphDesc parseGraph(const std::string& text, const std::filesystem::path& source) {
+    const std::string where = source.empty() ? std::string("graph") : source.string();
+    json doc = detail::parseJsonText(text, where);
+    GraphDesc g;
+    g.sourcePath = source;
+    std::vector<Diagnostic> diags;
+    if (!doc.is_object())
+        throw GraphError(std::vector<Diagnostic>{{"", "expected a JSON object at the top level"}});
+    detail::checkKeys(doc,
+                      {"kestrel", "name", "comment", "passes", "edges", "outputs", "groups",
+                       "include", "extends", "drop"},
+                      "", diags);
+    detail::checkVersion(doc, "", diags);
+    if (doc.contains("name")) {
+        if (doc["name"].is_string())
+            g.name = doc["name"];
+        else
+            diags.push_back({"name", "expected string, got " + doc["name"].dump()});
+    }
+    if (g.name.empty()) g.name = source.empty() ? "graph" : source.stem().string();
+    if (doc.contains("comment") && doc["comment"].is_string()) g.comment = doc["comment"];
+    detail::expandDocument(doc, source, g, diags);
+    if (!diags.empty()) throw GraphError(std::move(diags));
+    return g;
+}
+
+GraphDesc loadGraphFile(const std::filesystem::path& path) {
+    return parseGraph(detail::readGraphText(path), path);
+}
+
+std::vector<GroupInfo> listGroups(const std::filesystem::path& file) {
+    return detail::groupsOfFile(file);
+}
+
+namespace {
+
+/// Sets `param` on every pass `target` names or matches; true if any.
+bool overridePasses(GraphDesc& graph, const std::string& target, const std::string& param,
+                    const json& value, bool pattern) {
+    bool found = false;
+    for (auto& p : graph.passes)
+        if (pattern ? fnmatch(target.c_str(), p.name.c_str(), 0) == 0 : p.name == target) {
+            json params = json::parse(p.paramsJson);
+            params[param] = value;
+            p.paramsJson = params.dump();
+            found = true;
+        }
+    return found;
+}
+
+/// Sets group parameter `param` of every instance `target` names or matches: every inner
+/// parameter bound to it; true if any instance has that group parameter.
+bool overrideInstances(GraphDesc& graph, const std::string& target, const std::string& param,
+                       const json& value, bool pattern) {
+    bool found = false;
+    for (const auto& inst : graph.instances) {
+        if (!(pattern ? fnmatch(target.c_str(), inst.path.c_str(), 0) == 0 : inst.path == target))
+            continue;
+        auto it = inst.bindings.find(param);
+        if (it == inst.bindings.end()) continue;
+        found = true;
+        for (const auto& [pass, inner] : it->second)
+            overridePasses(graph, pass, inner, value, false);
+    }
+    return found;
+}
+
+}  // namespace
 
 void applyOverride(GraphDesc& graph, const std::string& assignment) {
     auto eq = assignment.find('=');
-    auto dot = assignment.find('.');
-    if (eq == std::string::npos || dot == std::string::npos || dot > eq || dot == 0 ||
-        dot + 1 == eq)
+    auto dot = eq == std::string::npos ? std::string::npos : assignment.rfind('.', eq);
+    if (eq == std::string::npos || dot == std::string::npos || dot == 0 || dot + 1 == eq)
         throw Error("--set " + assignment + ": expected pass.param=value");
     std::string pass = assignment.substr(0, dot);
     std::string param = assignment.substr(dot + 1, eq - dot - 1);
@@ -257,20 +227,19 @@ void applyOverride(GraphDesc& graph, const std::string& assignment) {
         throw Error("--set " + assignment + ": " + jsonProblem(e));
     }
     // A pattern (*, ?, [..]) sets the parameter on every pass whose name matches: e.g.
-    // '*atrous*.exact=true' for all A-Trous iterations of every chain.
+    // '*atrous*.exact=true' for all A-Trous iterations of every chain. A group instance's
+    // parameter (diffuse.sigmaL) goes to every inner parameter bound to it; a pattern that
+    // matches instances with that group parameter ('*.sigmaL') sets it on them only, not on
+    // every pass the pattern also matches.
     const bool pattern = pass.find_first_of("*?[") != std::string::npos;
-    bool found = false;
-    for (auto& p : graph.passes)
-        if (pattern ? fnmatch(pass.c_str(), p.name.c_str(), 0) == 0 : p.name == pass) {
-            json params = json::parse(p.paramsJson);
-            params[param] = value;
-            p.paramsJson = params.dump();
-            found = true;
-            if (!pattern) return;
-        }
-    if (found) return;
-    std::string known;
+    if (overrideInstances(graph, pass, param, value, pattern)) return;
+    if (overridePasses(graph, pass, param, value, pattern)) return;
+    std::string known, groupParams;
     for (const auto& p : graph.passes) known += (known.empty() ? "" : ", ") + p.name;
+    for (const auto& i : graph.instances)
+        for (const auto& [name, targets] : i.bindings)
+            groupParams += (groupParams.empty() ? "" : ", ") + i.path + "." + name;
+    if (!groupParams.empty()) known += "; group parameters: " + groupParams;
     throw Error("--set " + assignment + ": no pass " + (pattern ? "matches '" : "named '") + pass +
                 "' (passes: " + known + ")");
 }

@@ -2,7 +2,6 @@
 // settings over one sequence, as a table on the terminal and a report (Markdown, CSV, HTML).
 #include <eval/BenchReport.h>
 #include <eval/ExrRgb.h>
-#include <fnmatch.h>
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -69,15 +68,17 @@ std::vector<Setting> makeSettings(const BenchOptions& o) {
         bool swept = false;
         for (const auto& sweep : o.sweeps) {
             auto eq = sweep.find('=');
-            auto dot = sweep.find('.');
-            if (eq == std::string::npos || dot == std::string::npos || dot > eq)
+            auto dot = eq == std::string::npos ? std::string::npos : sweep.rfind('.', eq);
+            if (eq == std::string::npos || dot == std::string::npos)
                 throw Error("--sweep " + sweep + ": expected pass.param=v1,v2,...");
-            std::string pass = sweep.substr(0, dot);
-            const bool pattern = pass.find_first_of("*?[") != std::string::npos;
-            bool has = std::any_of(g.passes.begin(), g.passes.end(), [&](const PassNode& p) {
-                return pattern ? fnmatch(pass.c_str(), p.name.c_str(), 0) == 0 : p.name == pass;
-            });
-            if (!has) continue;
+            // A graph without the pass (or group parameter) is not swept: the assignment is
+            // tried on a copy, as --set would apply it (names, patterns, instance parameters).
+            try {
+                GraphDesc trial = g;
+                applyOverride(trial, sweep.substr(0, eq) + "=0");
+            } catch (const Error&) {
+                continue;
+            }
             std::stringstream values(sweep.substr(eq + 1));
             for (std::string v; std::getline(values, v, ',');) {
                 if (v.empty()) continue;

@@ -28,8 +28,9 @@ std::unique_ptr<Plugins> loadPlugins() {
     auto p = std::make_unique<Plugins>();
     p->loader.loadDirectories(defaultPluginDirectories(), p->registry);
     if (p->registry.all().empty())
-        spdlog::warn("no pass plugins found (looked in the install's plugin directory and "
-                     "KESTREL_PLUGIN_PATH)");
+        spdlog::warn(
+            "no pass plugins found (looked in the install's plugin directory and "
+            "KESTREL_PLUGIN_PATH)");
     return p;
 }
 
@@ -39,8 +40,9 @@ fs::path exeDir() {
     return fs::read_symlink("/proc/self/exe", ec).parent_path();
 }
 
-
-bool isSink(const PassType& t) { return t.desc.sink && t.desc.findParam("path") != nullptr; }
+bool isSink(const PassType& t) {
+    return t.desc.sink && t.desc.findParam("path") != nullptr;
+}
 
 std::string pathParam(const PassNode& n) {
     auto j = nlohmann::json::parse(n.paramsJson);
@@ -84,7 +86,9 @@ bool isSourceType(const PassType& t) {
         if (p.kind == PortKind::Input) return false;
     return true;
 }
-bool isSource(const PassType& t) { return isSourceType(t) && t.desc.findParam("path") != nullptr; }
+bool isSource(const PassType& t) {
+    return isSourceType(t) && t.desc.findParam("path") != nullptr;
+}
 
 fs::path shippedGraph(const std::string& name) {
     fs::path installed = exeDir() / ".." / KESTREL_INSTALL_GRAPH_DIR / name;
@@ -104,8 +108,9 @@ GraphDesc prepareGraph(const GraphOptions& o, const Registry& reg) {
         if (!t || !pathParam(n).empty()) continue;
         if (isSource(*t)) {
             fs::path scene = ensureDefaultScene(fs::path(o.outDir) / "default-scene");
-            applyOverride(g, n.name + ".path=" +
-                                 nlohmann::json((scene / "noisy" / "frame_####.exr").string()).dump());
+            applyOverride(g,
+                          n.name + ".path=" +
+                              nlohmann::json((scene / "noisy" / "frame_####.exr").string()).dump());
             spdlog::info("{}: no --input given; using the built-in scene in {}", n.name,
                          scene.string());
         } else if (isSink(*t)) {
@@ -121,30 +126,11 @@ GraphDesc prepareGraph(const GraphOptions& o, const Registry& reg) {
     return g;
 }
 
-namespace {
-/// "taa.alpha" for "passes[1].params.alpha", "taa" for "passes[1]..." (empty if neither).
-std::string passLabel(const std::string& path, const GraphDesc& g) {
-    size_t index = 0;
-    int consumed = 0;
-    if (std::sscanf(path.c_str(), "passes[%zu]%n", &index, &consumed) != 1 || consumed == 0 ||
-        index >= g.passes.size())
-        return {};
-    std::string label = g.passes[index].name;
-    const std::string rest = path.substr(size_t(consumed));
-    const std::string params = ".params.";
-    if (rest.rfind(params, 0) == 0) label += "." + rest.substr(params.size());
-    return label;
-}
-}  // namespace
-
 void printGraphError(const GraphError& e, const GraphDesc* graph) {
-    for (const auto& d : e.diagnostics()) {
-        std::string label = graph ? passLabel(d.path, *graph) : std::string();
-        if (label.empty())
-            std::cerr << "error: " << d.str() << "\n";
-        else
-            std::cerr << "error: " << d.path << " (" << label << "): " << d.message << "\n";
-    }
+    // The compiler names the pass (and parameter) of each finding itself: "passes[1].params.alpha
+    // (taa.alpha): ...", or for a pass inside a group instance the JSON path in the definition.
+    (void)graph;
+    for (const auto& d : e.diagnostics()) std::cerr << "error: " << d.str() << "\n";
 }
 
 std::string markSinkInput(GraphDesc& g, const Registry& reg, bool detach) {
@@ -157,12 +143,14 @@ std::string markSinkInput(GraphDesc& g, const Registry& reg, bool detach) {
     std::string marked;
     for (const auto& e : g.edges)
         if (isSinkName(e.toPass) && marked.empty()) marked = e.fromPass + "." + e.fromPort;
-    if (marked.empty()) throw Error("graph '" + g.name + "' has no writer whose input could be measured");
+    if (marked.empty())
+        throw Error("graph '" + g.name + "' has no writer whose input could be measured");
     if (detach) {
         std::erase_if(g.edges, [&](const EdgeDesc& e) { return isSinkName(e.toPass); });
         std::erase_if(g.passes, [&](const PassNode& p) { return isSinkName(p.name); });
     }
-    if (std::find(g.outputs.begin(), g.outputs.end(), marked) == g.outputs.end()) g.outputs.push_back(marked);
+    if (std::find(g.outputs.begin(), g.outputs.end(), marked) == g.outputs.end())
+        g.outputs.push_back(marked);
     return marked;
 }
 

@@ -38,7 +38,7 @@ std::vector<std::string> matchDumps(const CompiledGraph& compiled,
 void addDumpWriters(GraphDesc& graph, const std::vector<std::string>& resources,
                     const fs::path& dir) {
     for (const auto& r : resources) {
-        const auto dot = r.find('.');
+        const auto dot = r.rfind('.');  // instance paths contain dots: diffuse.atrous0.color
         std::string name = "dump_" + r;
         std::replace_if(
             name.begin(), name.end(), [](char c) { return !std::isalnum((unsigned char)c); }, '_');

@@ -48,7 +48,8 @@ std::string leftOutSummary(const CompileReport& report) {
     const size_t n = report.pruned.size() + report.elided.size();
     if (n == 0) return "";
     // The root causes: the source outputs the scene lacks ("input.diffuse is absent").
-    static const std::regex absent(R"(([A-Za-z0-9_]+\.[A-Za-z0-9_]+) is absent)");
+    static const std::regex absent(
+        R"(([A-Za-z0-9_.]+\.[A-Za-z0-9_]+) is absent)");  // pass names may be instance paths
     std::vector<std::string> causes;
     auto collect = [&](const std::vector<LeftOutPass>& list) {
         for (const auto& p : list)

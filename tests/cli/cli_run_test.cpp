@@ -194,7 +194,7 @@ TEST_F(CliRun, DefaultLogIsShortAndVerboseHasEveryDetail) {
     EXPECT_NE(quiet.err.find("input.diffuse"), std::string::npos) << quiet.err;  // a cause
     const CliResult verbose = runSvgf({"-v"});
     ASSERT_EQ(verbose.code, 0) << verbose.all();
-    EXPECT_NE(verbose.err.find("pruned diffuse_demodulate: "), std::string::npos) << verbose.err;
+    EXPECT_NE(verbose.err.find("pruned diffuse.demodulate: "), std::string::npos) << verbose.err;
 }
 
 // --dump writes every frame of each matching resource as a float EXR (pass.port.####.exr under
@@ -224,7 +224,7 @@ TEST_F(CliRun, DumpWritesMatchingResourcesAndChangesNothing) {
         ASSERT_TRUE(readRgb((box.work() / "plain" / name).string(), a));
         ASSERT_TRUE(readRgb((box.work() / "dumped" / name).string(), b));
         ASSERT_TRUE(readRgb(
-            (box.work() / "d" / frameName("single_modulate.color.", f, ".exr")).string(), d));
+            (box.work() / "d" / frameName("single.modulate.color.", f, ".exr")).string(), d));
         EXPECT_EQ(a.rgb, b.rgb) << "frame " << f;
         EXPECT_EQ(d.rgb, a.rgb) << "frame " << f;  // the room: no TAA, the modulated colour
     }

@@ -152,7 +152,7 @@ TEST(SvgfQuality, FarBelowInputAndBelowSingleFrameFiltering) {
     // With motion vectors the world positions are not needed: not connected, not read.
     const auto& notes = svgf.report.notes;
     EXPECT_TRUE(contains(
-        notes, "single_reprojection: input 'position' not read: motion vectors are given"));
+        notes, "single.reprojection: input 'position' not read: motion vectors are given"));
 }
 
 // Measured: see the printed figures; temporal reuse must make the output steadier.
@@ -223,13 +223,13 @@ TEST(SvgfAdapts, SceneWithoutAlbedoEmissionOrMotion) {
             if (e.pass == pass) return true;
         return false;
     };
-    EXPECT_TRUE(elided("single_demodulate"));
-    EXPECT_TRUE(elided("single_modulate"));
-    EXPECT_FALSE(contains(r.executed, "single_demodulate"));
-    EXPECT_TRUE(contains(r.executed, "single_reprojection"));
+    EXPECT_TRUE(elided("single.demodulate"));
+    EXPECT_TRUE(elided("single.modulate"));
+    EXPECT_FALSE(contains(r.executed, "single.demodulate"));
+    EXPECT_TRUE(contains(r.executed, "single.reprojection"));
     EXPECT_FALSE(
         contains(r.report.notes,
-                 "single_reprojection: input 'position' not read: motion vectors are given"));
+                 "single.reprojection: input 'position' not read: motion vectors are given"));
     EXPECT_LT(r.mean(2), 0.5 * inputError(scene, frames, 2));
 }
 
@@ -266,7 +266,7 @@ TEST(BlenderSample, SvgfRunsOnTheRealRenderAndMatchesTheDesignFigures) {
     auto frames = range(1, 12);
     RunResult r = runGraph("svgf.json", (dir / "noisy/frame_####.exr").string(),
                            (dir / "ref/frame_####.exr").string(), frames);
-    EXPECT_TRUE(contains(r.executed, "diffuse_atrous0"))
+    EXPECT_TRUE(contains(r.executed, "diffuse.atrous0"))
         << "the diffuse/specular split was not used";
     double svgf = r.mean(4);
     std::printf("blender sample svgf.json relMSE frames 5-12: %.4f\n", svgf);
@@ -277,8 +277,8 @@ TEST(BlenderSample, SvgfRunsOnTheRealRenderAndMatchesTheDesignFigures) {
 // and its reprojection are left out and the albedos are used as they are; on an anti-aliased
 // one (1.5 px filter) each split albedo is prefiltered and averaged over frames and TAA runs.
 TEST(SvgfAdapts, AntiAliasingDecidesTaaAndAlbedoAveraging) {
-    const std::vector<std::string> aaPasses{"diffuse_albedo_prefilter",  "diffuse_albedo",
-                                            "specular_albedo_prefilter", "specular_albedo",
+    const std::vector<std::string> aaPasses{"diffuse.albedo_prefilter",  "diffuse.albedo",
+                                            "specular.albedo_prefilter", "specular.albedo",
                                             "taaReprojection",           "taa"};
     for (const char* name : {"street", "street-jittered"}) {
         auto opt = scenegen::zooScene(name).options;
@@ -311,7 +311,7 @@ TEST(SvgfAdapts, SceneWithoutMotionOrPositionReprojectsFromDepth) {
     const RunResult motion = run(withMotion), fromDepth = run(without),
                     identity = run(without, {"input.channels=position="});
     EXPECT_TRUE(contains(fromDepth.report.notes,
-                         "single_reprojection: reprojecting with world positions and matrices"));
+                         "single.reprojection: reprojecting with world positions and matrices"));
     std::printf("relMSE frames 2-8: motion %.4f, from depth %.4f, identity %.4f\n", motion.mean(1),
                 fromDepth.mean(1), identity.mean(1));
     EXPECT_LT(fromDepth.mean(1), 1.05 * motion.mean(1));

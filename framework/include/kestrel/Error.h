@@ -22,9 +22,14 @@ public:
 
 /// One validation finding, pointing at the JSON location it concerns.
 struct Diagnostic {
-    std::string path;     ///< JSON path, e.g. "passes[3].params.alpha" (empty: whole document)
-    std::string message;  ///< what was expected and what was found
-    std::string str() const { return path.empty() ? message : path + ": " + message; }
+    std::string path;        ///< JSON path, e.g. "passes[3].params.alpha" (empty: whole document)
+    std::string message;     ///< what was expected and what was found
+    std::string label = {};  ///< what it concerns by name, e.g. "diffuse.atrous2.sigmaL" (optional)
+    /// "path (label): message"
+    std::string str() const {
+        std::string where = label.empty() ? path : path.empty() ? label : path + " (" + label + ")";
+        return where.empty() ? message : where + ": " + message;
+    }
 };
 
 /// Every problem validation found in a graph, gathered and thrown once.

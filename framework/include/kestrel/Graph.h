@@ -8,9 +8,17 @@
 //     "outputs": [ "taa.color" ] }
 //
 // Sinks (writers) are outputs by themselves; "outputs" marks further pass.port results to keep.
+//
+// Groups (docs/graphs.md): "groups" defines named subgraphs with inputs, outputs and parameters,
+// "include" reads group definitions from other files, "extends" starts from another graph
+// ("drop" removes passes of it), and a pass with "group" instead of "type" is an instance. They
+// are expanded when the file is parsed: a GraphDesc is always flat, its passes named by instance
+// path ("diffuse.atrous2"), so the compiler, reports and provenance see plain passes.
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "kestrel/Error.h"
@@ -24,11 +32,38 @@ struct PassNode {
     std::string type;
     std::string paramsJson = "{}";  ///< the JSON object of parameters, as written
     std::string comment;
+    /// Where the pass is written: "passes[3]" in the graph file, or for a pass expanded from a
+    /// group "lib/svgf-chain.json: groups.svgf-chain.passes[9]". Empty: built in code.
+    std::string origin = {};
+    /// Path of the innermost group instance the pass comes from ("diffuse"), else empty.
+    std::string instance = {};
+    /// Parameters set from a group parameter: param -> "diffuse.sigmaL" (for error messages).
+    std::map<std::string, std::string> boundParams = {};
 };
 
 struct EdgeDesc {
     std::string fromPass, fromPort, toPass, toPort;
     bool history = false;
+    std::string origin = {};  ///< JSON path of the edge as written (see PassNode::origin)
+};
+
+/// One expanded group instance (nested instances have dotted paths: "outer.inner").
+struct GroupInstance {
+    std::string path;   ///< "diffuse"
+    std::string group;  ///< the definition's name, "svgf-chain"
+    std::string origin;
+    /// Group parameter -> the (flat pass, parameter) pairs it drives, for --set diffuse.sigmaL=6.
+    std::map<std::string, std::vector<std::pair<std::string, std::string>>> bindings;
+};
+
+/// A group definition as written, for listings (`kestrel passes`).
+struct GroupInfo {
+    std::string name;
+    std::string file;
+    std::string comment;
+    std::vector<std::string> inputs, outputs;
+    std::vector<std::pair<std::string, std::string>> params;  ///< name, default as JSON
+    size_t passCount = 0;
 };
 
 struct GraphDesc {
@@ -37,7 +72,8 @@ struct GraphDesc {
     std::filesystem::path sourcePath;
     std::vector<PassNode> passes;
     std::vector<EdgeDesc> edges;
-    std::vector<std::string> outputs;  ///< "pass.port" or "pass"
+    std::vector<std::string> outputs;      ///< "pass.port" or "pass"
+    std::vector<GroupInstance> instances;  ///< in expansion order (outer before inner)
 };
 
 /// Parses JSON text. Syntax errors report line and column; structural errors (missing keys,
@@ -46,9 +82,19 @@ GraphDesc parseGraph(const std::string& jsonText, const std::filesystem::path& s
 /// Reads and parses a file; an unreadable file is an Error naming it.
 GraphDesc loadGraphFile(const std::filesystem::path& path);
 
+/// The group definitions a file declares itself (not those it includes), checked as an include
+/// would check them. For `kestrel passes`.
+std::vector<GroupInfo> listGroups(const std::filesystem::path& file);
+
+/// Splits "pass.port" at its last dot (pass names of group instances contain dots).
+bool splitPassPort(const std::string& s, std::string& pass, std::string& port);
+
 /// Applies `pass.param=value` overrides (value parsed as JSON, else taken as a string). `pass`
-/// may be a shell pattern (`*atrous*`): every matching pass gets the value. A name or pattern
-/// matching no pass is an Error naming the override.
+/// may be a shell pattern (`*atrous*`): every matching pass gets the value. `pass` may also name
+/// a group instance and `param` one of its group parameters (`diffuse.sigmaL=6`): every inner
+/// parameter bound to it gets the value. A pattern matching instances with that group parameter
+/// (`*.sigmaL`) sets the group parameter only. A name or pattern matching nothing is an Error
+/// naming the override.
 void applyOverride(GraphDesc& graph, const std::string& assignment);
 
 }  // namespace kestrel

@@ -153,10 +153,11 @@ TEST(Validation, ParameterTypeAndRange) {
         {"name": "c", "type": "AddOne", "params": {"alpha": 1.5}}],
         "edges": [{"from": "src.out", "to": "a.in"}, {"from": "a.out", "to": "b.in"},
                   {"from": "b.out", "to": "c.in"}]})");
-    // The exact wording the design promises (design.md section 2).
+    // The exact wording the design promises (design.md section 2), with the parameter by name.
     bool exact = false;
     for (const auto& x : d)
-        exact = exact || x.str() == "passes[3].params.alpha: expected number in [0, 1], got 1.5";
+        exact = exact ||
+                x.str() == "passes[3].params.alpha (c.alpha): expected number in [0, 1], got 1.5";
     EXPECT_TRUE(exact) << dump(d);
     EXPECT_TRUE(hasDiag(d, "passes[1].params.alpha", {"expected number", "got \"high\""}));
     EXPECT_TRUE(hasDiag(d, "passes[1].params.count", {"expected integer in [1, 10]", "got 2.5"}));
@@ -223,7 +224,7 @@ TEST(Validation, ErrorsAreGatheredIntoOneGraphError) {
     } catch (const GraphError& e) {
         EXPECT_STREQ(
             e.what(),
-            "passes[0].type: unknown pass type 'AddOen' (did you mean 'AddOne'?) (and 1 more)");
+            "passes[0].type (a): unknown pass type 'AddOen' (did you mean 'AddOne'?) (and 1 more)");
     }
 }
 

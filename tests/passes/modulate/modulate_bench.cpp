@@ -1,4 +1,4 @@
-// Modulate at 1920x1080 (illumination, albedo and emission bound, as single_modulate in
+// Modulate at 1920x1080 (illumination, albedo and emission bound, as single.modulate in
 // svgf.json). Reports megapixels per second (wall time: the pass runs on its own pool). Built
 // as `modulate_bench`, not registered with ctest: run it by hand.
 #include <benchmark/benchmark.h>

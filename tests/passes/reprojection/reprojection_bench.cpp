@@ -50,7 +50,7 @@ void BM_Reprojection(benchmark::State& state) {
     }
     state.counters["Mpx/s"] = benchmark::Counter(double(kW) * kH * double(state.iterations()) / 1e6,
                                                  benchmark::Counter::kIsRate);
-    state.SetLabel(taa ? "catmullrom (taaReprojection)" : "bilinear (single_reprojection)");
+    state.SetLabel(taa ? "catmullrom (taaReprojection)" : "bilinear (single.reprojection)");
 }
 BENCHMARK(BM_Reprojection)
     ->ArgsProduct({{1, 2}, {0, 1}})

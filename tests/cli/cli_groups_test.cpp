@@ -1,0 +1,100 @@
+// Groups on the command line (docs/graphs.md): --set on instance paths, group parameters and
+// patterns; errors inside an instance as one line naming the instance path and the definition;
+// DOT clusters; `kestrel passes` listing the groups of a graph folder.
+#include <nlohmann/json.hpp>
+
+#include "CliRunner.h"
+
+using namespace clitest;
+
+namespace {
+
+fs::path shipped(const char* name) {
+    return fs::path(KESTREL_SOURCE_DIR) / "graphs" / name;
+}
+
+class CliGroups : public ::testing::Test {
+protected:
+    void SetUp() override {
+        if (!makeScene(box, box.work() / "scene", 16, 12, 1))
+            GTEST_SKIP() << "no scenegen in this build";
+    }
+    /// `kestrel graph svgf.json` on the tiny scene, with extra arguments.
+    CliResult graph(const std::vector<std::string>& extra) {
+        std::vector<std::string> args{"graph", shipped("svgf.json").string(), "--input",
+                                      "scene/noisy/frame_####.exr"};
+        args.insert(args.end(), extra.begin(), extra.end());
+        return box.run(args);
+    }
+    Sandbox box;
+};
+
+TEST_F(CliGroups, SetTakesInstancePathsGroupParametersAndPatterns) {
+    for (const char* set :
+         {"single.atrous2.sigmaL=6", "single.sigmaL=6", "*.sigmaL=6", "*.atrous*.exact=true"}) {
+        const CliResult r = graph({"--set", set});
+        EXPECT_EQ(r.code, 0) << set << "\n" << r.all();
+    }
+    // A bad value through a group parameter: one line per inner pass it drives, each naming the
+    // instance path, the definition's JSON path and the group parameter.
+    const CliResult bad = graph({"--set", "single.sigmaL=-1"});
+    EXPECT_EQ(bad.code, 2) << bad.all();
+    const auto lines = bad.errorLines();
+    ASSERT_EQ(lines.size(), 5u) << bad.all();  // atrous0..4 of the single chain
+    EXPECT_NE(lines[2].find("svgf-chain.json: groups.svgf-chain.passes[10].params.sigmaL "
+                            "(single.atrous2.sigmaL): expected number in"),
+              std::string::npos)
+        << lines[2];
+    EXPECT_NE(lines[2].find("(set by group parameter single.sigmaL)"), std::string::npos)
+        << lines[2];
+    // A pattern matching nothing names it.
+    const CliResult none = graph({"--set", "*.atrous9.sigmaL=1"});
+    EXPECT_EQ(none.code, 2) << none.all();
+    ASSERT_EQ(none.errorLines().size(), 1u) << none.all();
+    EXPECT_NE(none.errorLines()[0].find("no pass matches '*.atrous9'"), std::string::npos);
+}
+
+TEST_F(CliGroups, DotDrawsEachInstanceAsACluster) {
+    const CliResult r = graph({"--dot"});
+    ASSERT_EQ(r.code, 0) << r.all();
+    for (const char* inst : {"diffuse", "specular", "single"}) {
+        const auto at = r.out.find("subgraph \"cluster_" + std::string(inst) + "\" {");
+        ASSERT_NE(at, std::string::npos) << inst << "\n" << r.out;
+        // The instance's passes are declared inside its cluster, before it closes.
+        const auto pass = r.out.find("\"" + std::string(inst) + ".atrous0\" [label", at);
+        EXPECT_LT(pass, r.out.find("\n  }\n", at)) << inst;
+    }
+    EXPECT_EQ(r.out.find("subgraph \"cluster_taa"), std::string::npos);  // not an instance
+}
+
+TEST_F(CliGroups, PassesListsTheGroupsOfAGraphFolder) {
+    CliResult r = box.run({"passes"});
+    ASSERT_EQ(r.code, 0) << r.all();
+    EXPECT_NE(r.out.find("group svgf-chain"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("param sigmaL = 4.0"), std::string::npos) << r.out;
+    r = box.run({"passes", "--json"});
+    ASSERT_EQ(r.code, 0) << r.all();
+    const auto j = nlohmann::json::parse(r.out);
+    bool chain = false;
+    for (const auto& e : j)
+        if (e.value("group", "") == "svgf-chain") {
+            chain = true;
+            EXPECT_EQ(e["outputs"], nlohmann::json::array({"color"}));
+            EXPECT_EQ(e["params"]["sigmaL"], 4.0);
+        }
+    EXPECT_TRUE(chain) << r.out;
+    // Another folder: its own groups; a broken definition is one error line, exit 2.
+    writeText(box.work() / "mine" / "lib" / "g.json", R"({"kestrel": 1, "groups": {"blur": {
+        "inputs": ["x"], "outputs": ["y"], "passes": []}}})");
+    r = box.run({"passes", "--graphs", "mine"});
+    ASSERT_EQ(r.code, 0) << r.all();
+    EXPECT_NE(r.out.find("group blur"), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("group svgf-chain"), std::string::npos) << r.out;
+    writeText(box.work() / "mine" / "bad.json", R"({"kestrel": 1, "include": ["bad.json"]})");
+    r = box.run({"passes", "--graphs", "mine"});
+    EXPECT_EQ(r.code, 2) << r.all();
+    ASSERT_EQ(r.errorLines().size(), 1u) << r.all();
+    EXPECT_NE(r.errorLines()[0].find("include cycle"), std::string::npos) << r.all();
+}
+
+}  // namespace

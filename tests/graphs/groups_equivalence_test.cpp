@@ -1,0 +1,207 @@
+// The shipped SVGF graphs written with groups (graphs/lib/svgf-chain.json, extends/drop) compute
+// what the flat graphs they replaced computed (issue 16). tests/graphs/flat/ keeps those flat
+// files as they were before the rewrite: their pass "diffuse_atrous0" is the instance path
+// "diffuse.atrous0" now (the first '_' of a chain pass became the instance's '.').
+#include <gtest/gtest.h>
+#include <kestrel/Compiler.h>
+#include <kestrel/Executor.h>
+#include <scenegen/SceneGen.h>
+#include <unistd.h>
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <regex>
+#include <set>
+#include <tuple>
+
+#include "../GraphTestUtil.h"
+
+namespace fs = std::filesystem;
+using namespace kestrel;
+using nlohmann::json;
+
+namespace {
+
+const char* const kGraphs[] = {"svgf.json", "svgf-notaa.json", "svgf-split.json"};
+
+fs::path shipped(const std::string& name) {
+    return fs::path(KESTREL_SOURCE_DIR) / "graphs" / name;
+}
+fs::path flat(const std::string& name) {
+    return fs::path(KESTREL_SOURCE_DIR) / "tests" / "graphs" / "flat" / name;
+}
+
+/// The flat file's pass name as an instance path: diffuse_atrous0 -> diffuse.atrous0.
+std::string instancePath(const std::string& flatName) {
+    static const std::regex chain("^(diffuse|specular|single)_(.+)$");
+    return std::regex_replace(flatName, chain, "$1.$2");
+}
+
+/// Every parameter of a pass, declared defaults filled in: a group that writes a default out
+/// ("sigmaL": "$sigmaL" with 4.0) sets what the flat file left to the default.
+json effectiveParams(const PassNode& p) {
+    const PassType* t = testutil::builtPlugins().find(p.type);
+    EXPECT_NE(t, nullptr) << p.type;
+    json all = json::object();
+    if (t)
+        for (const auto& d : t->desc.params)
+            all[d.name] = std::visit([](const auto& x) { return json(x); }, d.defaultValue);
+    const json set = json::parse(p.paramsJson);
+    for (const auto& [k, v] : set.items()) all[k] = v;
+    return all;
+}
+
+using PassKey = std::tuple<std::string, std::string, std::string>;  // name, type, params
+using EdgeKey = std::tuple<std::string, std::string, bool>;         // from, to, history
+
+std::multiset<PassKey> passesOf(const GraphDesc& g, bool rename) {
+    std::multiset<PassKey> s;
+    for (const auto& p : g.passes)
+        s.insert({rename ? instancePath(p.name) : p.name, p.type, effectiveParams(p).dump()});
+    return s;
+}
+
+std::multiset<EdgeKey> edgesOf(const GraphDesc& g, bool rename) {
+    auto n = [&](const std::string& pass) { return rename ? instancePath(pass) : pass; };
+    std::multiset<EdgeKey> s;
+    for (const auto& e : g.edges)
+        s.insert({n(e.fromPass) + "." + e.fromPort, n(e.toPass) + "." + e.toPort, e.history});
+    return s;
+}
+
+// The expansion of each shipped graph is the flat graph: the same passes with the same types and
+// parameters, the same edges (history flags included), nothing more.
+TEST(ShippedGroups, ExpandToTheFlatGraphs) {
+    for (const char* name : kGraphs) {
+        SCOPED_TRACE(name);
+        const GraphDesc grouped = loadGraphFile(shipped(name));
+        const GraphDesc old = loadGraphFile(flat(name));
+        EXPECT_EQ(passesOf(grouped, false), passesOf(old, true));
+        EXPECT_EQ(edgesOf(grouped, false), edgesOf(old, true));
+        EXPECT_EQ(grouped.passes.size(), old.passes.size());
+        EXPECT_EQ(grouped.edges.size(), old.edges.size());
+        EXPECT_EQ(grouped.outputs, old.outputs);
+    }
+}
+
+// One edit changes every chain: the group parameter's default drives the five A-Trous
+// iterations of all three chains, and --set on it (or on an instance) reaches exactly those.
+TEST(ShippedGroups, OneSigmaForEveryChain) {
+    GraphDesc g = loadGraphFile(shipped("svgf.json"));
+    applyOverride(g, "*.sigmaL=6");
+    int atrous = 0;
+    for (const auto& p : g.passes) {
+        const json params = json::parse(p.paramsJson);
+        const bool iteration = std::regex_match(p.name, std::regex(R"(\w+\.atrous[0-4])"));
+        atrous += iteration;
+        if (iteration)
+            EXPECT_EQ(params.value("sigmaL", 0.0), 6.0) << p.name;
+        else
+            EXPECT_FALSE(params.contains("sigmaL") && params["sigmaL"] == 6) << p.name;
+    }
+    EXPECT_EQ(atrous, 15);
+}
+
+/// Each frame's output of `graph` (its writer replaced by a marked output), as raw floats; or
+/// the compile error's message when the graph cannot run on the scene.
+struct Outputs {
+    std::vector<std::vector<float>> frames;
+    std::string error;
+};
+
+Outputs run(const fs::path& graph, const std::string& input, int64_t first, int64_t last) {
+    GraphDesc g = loadGraphFile(graph);
+    applyOverride(g, "input.path=" + json(input).dump());
+    const std::string marked = testutil::markWriterInput(g);
+    CompileOptions copt;
+    copt.firstFrame = first;
+    Outputs out;
+    std::unique_ptr<CompiledGraph> compiled;
+    try {
+        compiled = compileGraph(g, testutil::builtPlugins(), copt);
+    } catch (const Error& e) {
+        out.error = e.what();
+        return out;
+    }
+    Parallel parallel(2);
+    Executor exec(*compiled, parallel);
+    exec.beginRun(first, last);
+    for (int64_t f = first; f <= last; ++f) {
+        exec.runFrame(f, false);
+        const ImageView& o = exec.output(marked);
+        auto& v = out.frames.emplace_back();
+        for (int c = 0; c < o.channels(); ++c)
+            v.insert(v.end(), o.channel(c), o.channel(c) + o.pixels());
+    }
+    return out;
+}
+
+/// Runs every shipped SVGF graph and its flat original on a sequence: bit-identical frames.
+void expectBitIdentical(const std::string& input, int64_t first, int64_t last) {
+    int ran = 0;
+    for (const char* name : kGraphs) {
+        SCOPED_TRACE(std::string(name) + " on " + input);
+        const Outputs a = run(shipped(name), input, first, last);
+        const Outputs b = run(flat(name), input, first, last);
+        // svgf-split needs the diffuse/specular split: both refuse a scene without it, alike
+        // but for the pass names in the message.
+        EXPECT_EQ(a.error.empty(), b.error.empty()) << a.error << " | " << b.error;
+        ASSERT_EQ(a.frames.size(), b.frames.size());
+        for (size_t i = 0; i < a.frames.size(); ++i) {
+            ASSERT_EQ(a.frames[i].size(), b.frames[i].size());
+            EXPECT_EQ(std::memcmp(a.frames[i].data(), b.frames[i].data(),
+                                  a.frames[i].size() * sizeof(float)),
+                      0)
+                << "frame " << first + int64_t(i) << " differs";
+        }
+        ran += !a.frames.empty();
+    }
+    EXPECT_GE(ran, 2);  // svgf and svgf-notaa run on every scene
+}
+
+fs::path scene(const std::string& name, scenegen::SceneOptions opt) {
+    const fs::path dir =
+        fs::temp_directory_path() / ("kestrel-groups-" + std::to_string(::getpid())) / name;
+    if (!fs::exists(dir / "done")) {
+        fs::create_directories(dir);
+        scenegen::writeSequence(opt, dir);
+        std::ofstream(dir / "done") << "1";
+    }
+    return dir;
+}
+
+// The built-in room (point-sampled, one illumination: the single chain, no TAA).
+TEST(ShippedGroups, BitIdenticalOnTheBuiltInScene) {
+    scenegen::SceneOptions o;
+    o.width = 64;
+    o.height = 48;
+    o.frames = 4;
+    o.referenceSpp = 1;
+    expectBitIdentical((scene("room", o) / "noisy/frame_####.exr").string(), 1, 4);
+}
+
+// The zoo street with a 1.5 px pixel filter: the diffuse/specular split, albedo averaging, TAA.
+TEST(ShippedGroups, BitIdenticalOnAnAntiAliasedSplitScene) {
+    auto o = scenegen::zooScene("street-jittered").options;
+    o.frames = 4;
+    o.referenceSpp = 1;
+    expectBitIdentical((scene("street-jittered", o) / "noisy/frame_####.exr").string(), 1, 4);
+}
+
+// Blender Cycles renders: point-sampled with the split (blender-street), anti-aliased without
+// it (blender-street-defaults).
+TEST(ShippedGroups, BitIdenticalOnBlenderSequences) {
+    int found = 0;
+    for (const char* seq : {"blender-street", "blender-street-defaults"}) {
+        const fs::path dir = fs::path(KESTREL_SHARED_DIR) / "data" / seq;
+        if (!fs::exists(dir / "noisy" / "frame_0001.exr")) continue;
+        ++found;
+        expectBitIdentical((dir / "noisy/frame_####.exr").string(), 1, 3);
+    }
+    if (!found) GTEST_SKIP() << "../shared/data/blender-street* not present (a user's clone)";
+}
+
+}  // namespace
