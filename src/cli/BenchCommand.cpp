@@ -14,9 +14,11 @@
 #include "Commands.h"
 #include "Common.h"
 #include "DefaultScene.h"
+#include "Dump.h"
 #include "kestrel/Executor.h"
 #include "kestrel/FramePattern.h"
 #include "kestrel/Log.h"
+#include "kestrel/SequenceRunner.h"
 
 namespace kestrel::cli {
 
@@ -34,6 +36,7 @@ struct BenchOptions {
     int threads = 0;
     int warmup = 2;
     bool noInputRow = false;
+    std::vector<std::string> cropDumps;  ///< intermediates shown as crops in the report
 };
 
 /// One graph with one parameter setting.
@@ -101,159 +104,250 @@ Image cropOf(const ImageView& img, int x0, int y0, int w, int h) {
     return c;
 }
 
+/// The report's crop: the middle 128x128 (or less) of a frame.
+struct CropBox {
+    int x0, y0, w, h;
+    explicit CropBox(Extent e)
+        : x0((e.width - std::min(128, e.width)) / 2),
+          y0((e.height - std::min(128, e.height)) / 2),
+          w(std::min(128, e.width)),
+          h(std::min(128, e.height)) {}
+    Image of(const ImageView& img) const { return cropOf(img, x0, y0, w, h); }
+    std::string note(int64_t frame) const {
+        return "frame " + std::to_string(frame) + ", x " + std::to_string(x0) + "-" +
+               std::to_string(x0 + w - 1) + ", y " + std::to_string(y0) + "-" +
+               std::to_string(y0 + h - 1);
+    }
+};
+
+/// What every setting shares: the input, reference, frames and the report being filled.
+struct BenchRun {
+    const BenchOptions& options;
+    const Registry& registry;
+    std::string input, reference;
+    eval::ToneMap toneMap;
+    std::vector<int64_t> frames;
+    size_t cropFrame;  ///< index into frames of the frame the crops show
+    eval::BenchReport report;
+};
+
+/// A setting compiled for this input, or why it cannot run on it.
+struct Prepared {
+    std::unique_ptr<CompiledGraph> compiled;
+    std::string marked;              ///< "pass.port" compared with the reference
+    std::set<std::string> sources;   ///< passes whose time is load time
+    std::vector<std::string> crops;  ///< intermediates shown as crops (--crop-dump)
+    std::string error;               ///< not empty: the setting is skipped
+};
+
+/// Loads the setting's graph on the input, marks the compared output (writers detached) and the
+/// --crop-dump matches, and compiles it. A GraphError is the user's to fix and propagates; an
+/// Error (a graph this scene cannot feed) makes the setting skipped.
+Prepared prepare(const Setting& s, const BenchRun& b) {
+    Prepared p;
+    try {
+        GraphDesc g = loadGraphFile(s.graph);
+        std::string source;
+        for (const auto& n : g.passes)
+            if (const PassType* t = b.registry.find(n.type); t && isSource(*t)) {
+                source = n.name;
+                break;
+            }
+        if (source.empty()) throw Error("graph " + s.graph.string() + " has no input pass");
+        applyOverride(g, source + ".path=" + nlohmann::json(b.input).dump());
+        for (const auto& set : b.options.sets) applyOverride(g, set);
+        for (const auto& set : s.sets) applyOverride(g, set);
+        if (s.inputOnly) {
+            g.passes.erase(std::remove_if(g.passes.begin(), g.passes.end(),
+                                          [&](const PassNode& n) { return n.name != source; }),
+                           g.passes.end());
+            g.edges.clear();
+            g.outputs = {source + ".color"};
+            p.marked = g.outputs.front();
+        } else {
+            p.marked = markSinkInput(g, b.registry, true);
+        }
+        CompileOptions copt;
+        copt.firstFrame = b.frames.front();
+        p.compiled = compileGraph(g, b.registry, copt);
+        for (const auto& pattern : b.options.cropDumps)
+            for (const auto& r : matchResources(*p.compiled, pattern))
+                if (std::find(p.crops.begin(), p.crops.end(), r) == p.crops.end())
+                    p.crops.push_back(r);
+        if (!p.crops.empty()) {  // marked outputs stay readable after the frame
+            for (const auto& r : p.crops)
+                if (std::find(g.outputs.begin(), g.outputs.end(), r) == g.outputs.end())
+                    g.outputs.push_back(r);
+            p.compiled = compileGraph(g, b.registry, copt);
+        }
+        for (const auto& n : g.passes)
+            if (const PassType* t = b.registry.find(n.type); t && isSourceType(*t))
+                p.sources.insert(n.name);
+    } catch (const GraphError&) {
+        throw;
+    } catch (const Error& e) {
+        p.compiled.reset();
+        p.error = e.what();
+    }
+    return p;
+}
+
+/// Per frame of one setting: load and compute time (after the warm-up), the error against the
+/// reference, and the crops of the output and of the chosen intermediates.
+class BenchFrames : public SequenceObserver {
+public:
+    BenchFrames(BenchRun& b, const Setting& s, const Prepared& p, eval::BenchRow& row)
+        : b_(b), s_(s), p_(p), row_(row) {}
+
+    void frameDone(const FrameRecord& f, size_t i, const Executor& exec) override {
+        const bool timed =
+            i >= size_t(b_.options.warmup) || b_.frames.size() <= size_t(b_.options.warmup);
+        double compute = 0, load = 0;
+        for (const auto& t : f.passes) {
+            (p_.sources.count(t.pass) ? load : compute) += t.ms;
+            if (timed) passMs[t.pass].push_back(t.ms);
+        }
+        if (timed) {
+            computeMs.push_back(compute);
+            loadMs.push_back(load);
+        }
+        ImageView out = exec.output(p_.marked);
+        const CropBox box(out.extent);
+        if (!b_.reference.empty()) compare(out, f.frame, i == b_.cropFrame ? &box : nullptr);
+        if (i == b_.cropFrame) {
+            row_.crop = box.of(out);
+            for (const auto& r : p_.crops)
+                row_.intermediateCrops.push_back({r, box.of(exec.output(r))});
+            b_.report.cropNote = box.note(f.frame);
+            if (s_.inputOnly) b_.report.noisyCrop = box.of(out);
+        }
+    }
+
+    std::vector<double> computeMs, loadMs;
+    std::map<std::string, std::vector<double>> passMs;
+
+private:
+    /// Throws FrameError when the reference frame has another size than the output.
+    void compare(const ImageView& out, int64_t frame, const CropBox* box) {
+        const std::string path = expandFramePattern(b_.reference, frame);
+        Image ref = eval::readExrRgb(path, b_.options.refLayer);
+        if (ref.extent() != out.extent)
+            throw FrameError("reference " + path + " is " + std::to_string(ref.width()) + "x" +
+                             std::to_string(ref.height()) + ", output is " +
+                             std::to_string(out.width()) + "x" + std::to_string(out.height()));
+        row_.errors.push_back(
+            eval::compareImages(out, ref.view(), b_.toneMap, havePrev_ ? &prev_ : nullptr, &cur_));
+        std::swap(prev_, cur_);
+        havePrev_ = true;
+        if (box && b_.report.referenceCrop.width() == 0)
+            b_.report.referenceCrop = box->of(ref.view());
+    }
+
+    BenchRun& b_;
+    const Setting& s_;
+    const Prepared& p_;
+    eval::BenchRow& row_;
+    eval::FrameImages prev_, cur_;
+    bool havePrev_ = false;
+};
+
+/// Runs one prepared setting over the frames and prints its line of the table.
+void runSetting(BenchRun& b, const Setting& s, Prepared& p) {
+    Parallel parallel(b.options.threads);
+    RunInfo info;
+    info.graphName = p.compiled->desc().name;
+    Executor exec(*p.compiled, parallel, info);
+    eval::BenchRow row;
+    row.name = s.name;
+    BenchFrames frames(b, s, p, row);
+    SequenceOptions so;
+    so.frames = b.frames;
+    so.writeOutputs = false;  // the writers are detached; nothing is written
+    const SequenceResult result = SequenceRunner(*p.compiled, so).run(exec, &frames);
+    if (result.end == SequenceEnd::Failed) throw Error(result.error);
+    row.msPerFrame = s.inputOnly ? 0.0 : median(frames.computeMs);
+    for (const auto& n : p.compiled->executionOrder())
+        if (!p.sources.count(n) && frames.passMs.count(n))
+            row.passMs.push_back({n, median(frames.passMs[n])});
+    auto m = row.mean();
+    if (!b.reference.empty())
+        std::printf("%-34s %10.5f %7.2f %6.3f %9.5f %10.2f %9.2f\n", s.name.c_str(), m.relMse,
+                    m.psnr, m.ssim, m.temporal.value_or(0.0), row.msPerFrame,
+                    median(frames.loadMs));
+    else
+        std::printf("%-34s %10s %7s %6s %9s %10.2f %9.2f\n", s.name.c_str(), "-", "-", "-", "-",
+                    row.msPerFrame, median(frames.loadMs));
+    std::fflush(stdout);
+    b.report.rows.push_back(std::move(row));
+}
+
+/// Throws Error (a usage error) naming a --crop-dump pattern no setting computes.
+void checkCropPatterns(const BenchOptions& o, const std::vector<Prepared>& prepared) {
+    for (const auto& pattern : o.cropDumps) {
+        const bool any = std::any_of(prepared.begin(), prepared.end(), [&](const Prepared& p) {
+            return p.compiled && !matchResources(*p.compiled, pattern).empty();
+        });
+        if (!any)
+            throw Error("--crop-dump '" + pattern +
+                        "' matches no resource any benched graph computes for this input "
+                        "(kestrel run --dump lists what a graph computes)");
+    }
+}
+
 int runBench(const BenchOptions& o) {
     auto plugins = loadPlugins();
-    const Registry& reg = plugins->registry;
-    std::string input = o.input, reference = o.reference;
-    if (input.empty()) {
+    BenchRun b{o, plugins->registry, o.input, o.reference, eval::ToneMap::Reinhard, {}, 0, {}};
+    if (b.input.empty()) {
         fs::path scene = ensureDefaultScene(fs::path("kestrel-out") / "default-scene");
-        input = (scene / "noisy" / "frame_####.exr").string();
-        if (reference.empty()) reference = (scene / "ref" / "frame_####.exr").string();
+        b.input = (scene / "noisy" / "frame_####.exr").string();
+        if (b.reference.empty()) b.reference = (scene / "ref" / "frame_####.exr").string();
         spdlog::info("bench: no --input given; using the built-in scene in {}", scene.string());
     }
     auto tm = eval::parseToneMap(o.toneMap);
     if (!tm) throw Error("--tonemap " + o.toneMap + ": expected reinhard, clamp or srgb");
-    std::vector<int64_t> frames;
-    if (!o.frames.empty())
-        frames = parseFrameList(o.frames);
-    else
-        frames = findFrames(input);
-    if (frames.empty()) throw Error("--input " + input + ": no frames found");
-
-    eval::BenchReport report;
-    report.title = "kestrel bench";
-    report.frames = frames;
-    report.toneMap = *tm;
-    const size_t cropFrame = frames.size() / 2;
+    b.toneMap = *tm;
+    b.frames = o.frames.empty() ? findFrames(b.input) : parseFrameList(o.frames);
+    if (b.frames.empty()) throw Error("--input " + b.input + ": no frames found");
+    b.report.title = "kestrel bench";
+    b.report.frames = b.frames;
+    b.report.toneMap = *tm;
+    b.cropFrame = b.frames.size() / 2;
 
     std::vector<Setting> settings = makeSettings(o);
+    std::vector<Prepared> prepared;
+    for (const auto& s : settings) prepared.push_back(prepare(s, b));
+    try {
+        checkCropPatterns(o, prepared);
+    } catch (const Error& e) {
+        std::cerr << "error: " << e.what() << "\n";
+        return 2;
+    }
     std::printf("%-34s %10s %7s %6s %9s %10s %9s\n", "graph / setting", "relMSE", "PSNR", "SSIM",
                 "temporal", "ms/frame", "load ms");
     int skipped = 0;
-    for (const auto& s : settings) {
+    for (size_t i = 0; i < settings.size(); ++i) {
         try {
-            GraphDesc g = loadGraphFile(s.graph);
-            std::string source;
-            for (const auto& p : g.passes)
-                if (const PassType* t = reg.find(p.type); t && isSource(*t)) {
-                    source = p.name;
-                    break;
-                }
-            if (source.empty()) throw Error("graph " + s.graph.string() + " has no input pass");
-            applyOverride(g, source + ".path=" + nlohmann::json(input).dump());
-            for (const auto& set : o.sets) applyOverride(g, set);
-            for (const auto& set : s.sets) applyOverride(g, set);
-            std::string marked;
-            if (s.inputOnly) {
-                g.passes.erase(std::remove_if(g.passes.begin(), g.passes.end(),
-                                              [&](const PassNode& p) { return p.name != source; }),
-                               g.passes.end());
-                g.edges.clear();
-                g.outputs = {source + ".color"};
-                marked = g.outputs.front();
-            } else {
-                marked = markSinkInput(g, reg, true);
-            }
-            CompileOptions copt;
-            copt.firstFrame = frames.front();
-            auto compiled = compileGraph(g, reg, copt);
-            std::set<std::string> sources;
-            for (const auto& p : g.passes)
-                if (const PassType* t = reg.find(p.type); t && isSourceType(*t))
-                    sources.insert(p.name);
-
-            Parallel parallel(o.threads);
-            RunInfo info;
-            info.graphName = g.name;
-            Executor exec(*compiled, parallel, info);
-            exec.beginRun(frames.front(), frames.back());
-            eval::BenchRow row;
-            row.name = s.name;
-            std::vector<double> computeMs, loadMs;
-            std::map<std::string, std::vector<double>> passMs;
-            eval::FrameImages prev, cur;
-            bool havePrev = false;
-            for (size_t i = 0; i < frames.size(); ++i) {
-                exec.runFrame(frames[i], false);
-                double compute = 0, load = 0;
-                for (const auto& t : exec.lastTimes()) {
-                    if (sources.count(t.pass))
-                        load += t.ms;
-                    else
-                        compute += t.ms;
-                    if (i >= size_t(o.warmup) || frames.size() <= size_t(o.warmup))
-                        passMs[t.pass].push_back(t.ms);
-                }
-                if (i >= size_t(o.warmup) || frames.size() <= size_t(o.warmup)) {
-                    computeMs.push_back(compute);
-                    loadMs.push_back(load);
-                }
-                ImageView out = exec.output(marked);
-                if (!reference.empty()) {
-                    Image ref =
-                        eval::readExrRgb(expandFramePattern(reference, frames[i]), o.refLayer);
-                    if (ref.extent() != out.extent)
-                        throw FrameError("reference " + expandFramePattern(reference, frames[i]) +
-                                         " is " + std::to_string(ref.width()) + "x" +
-                                         std::to_string(ref.height()) + ", output is " +
-                                         std::to_string(out.width()) + "x" +
-                                         std::to_string(out.height()));
-                    row.errors.push_back(eval::compareImages(out, ref.view(), *tm,
-                                                             havePrev ? &prev : nullptr, &cur));
-                    std::swap(prev, cur);
-                    havePrev = true;
-                    if (i == cropFrame && report.referenceCrop.width() == 0) {
-                        int w = std::min(128, out.width()), h = std::min(128, out.height());
-                        report.referenceCrop =
-                            cropOf(ref.view(), (out.width() - w) / 2, (out.height() - h) / 2, w, h);
-                    }
-                }
-                if (i == cropFrame) {
-                    int w = std::min(128, out.width()), h = std::min(128, out.height());
-                    int x0 = (out.width() - w) / 2, y0 = (out.height() - h) / 2;
-                    row.crop = cropOf(out, x0, y0, w, h);
-                    report.cropNote = "frame " + std::to_string(frames[i]) + ", x " +
-                                      std::to_string(x0) + "-" + std::to_string(x0 + w - 1) +
-                                      ", y " + std::to_string(y0) + "-" +
-                                      std::to_string(y0 + h - 1);
-                    if (s.inputOnly) report.noisyCrop = cropOf(out, x0, y0, w, h);
-                }
-            }
-            exec.endRun();
-            row.msPerFrame = s.inputOnly ? 0.0 : median(computeMs);
-            for (const auto& n : compiled->executionOrder())
-                if (!sources.count(n) && passMs.count(n))
-                    row.passMs.push_back({n, median(passMs[n])});
-            auto m = row.mean();
-            if (!reference.empty())
-                std::printf("%-34s %10.5f %7.2f %6.3f %9.5f %10.2f %9.2f\n", s.name.c_str(),
-                            m.relMse, m.psnr, m.ssim, m.temporal.value_or(0.0), row.msPerFrame,
-                            median(loadMs));
-            else
-                std::printf("%-34s %10s %7s %6s %9s %10.2f %9.2f\n", s.name.c_str(), "-", "-", "-",
-                            "-", row.msPerFrame, median(loadMs));
-            std::fflush(stdout);
-            report.rows.push_back(std::move(row));
-        } catch (const GraphError&) {
-            throw;
+            if (!prepared[i].error.empty()) throw Error(prepared[i].error);
+            runSetting(b, settings[i], prepared[i]);
         } catch (const Error& e) {
             // A graph this scene cannot feed (e.g. a split graph on a scene without the split) is
             // reported and skipped; the other rows still make a report.
-            std::printf("%-34s skipped: %s\n", s.name.c_str(), e.what());
+            std::printf("%-34s skipped: %s\n", settings[i].name.c_str(), e.what());
             ++skipped;
         }
+        prepared[i].compiled.reset();  // its passes are done with
     }
-    if (report.rows.empty()) throw Error("no graph could run on this input");
+    if (b.report.rows.empty()) throw Error("no graph could run on this input");
     if (skipped) spdlog::warn("{} setting(s) skipped: the input cannot feed them", skipped);
     rusage ru{};
     getrusage(RUSAGE_SELF, &ru);
     std::printf("peak resident memory of the bench process: %.1f MB; %d thread(s)\n",
                 double(ru.ru_maxrss) / 1024.0, Parallel(o.threads).threadCount());
-    if (reference.empty()) {
+    if (b.reference.empty()) {
         spdlog::info("no --reference: timings only, no report written");
         return 0;
     }
-    auto files = eval::writeBenchReport(report, o.report);
+    auto files = eval::writeBenchReport(b.report, o.report);
     spdlog::info("report: {} (and {}, {})", files.html.string(), files.markdown.string(),
                  files.csv.string());
     return 0;
@@ -285,6 +379,12 @@ void addBenchCommand(CLI::App& app, Action& action) {
     cmd->add_option("--report", o->report, "Report folder");
     cmd->add_option("--tonemap", o->toneMap, "Tone map of PSNR/SSIM: reinhard, clamp, srgb");
     cmd->add_flag("--no-input-row", o->noInputRow, "Leave out the unfiltered-input row");
+    cmd->add_option("--crop-dump", o->cropDumps,
+                    "Show the matching intermediate resources (pass.port or a shell pattern such "
+                    "as '*atrous0.color') as crops beside each setting's output in the report; "
+                    "repeatable")
+        ->expected(1)
+        ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
     cmd->callback([&action, o] {
         action = [o]() -> int {
             try {

@@ -11,26 +11,36 @@ namespace kestrel::cli {
 
 namespace fs = std::filesystem;
 
-std::vector<std::string> matchDumps(const CompiledGraph& compiled,
-                                    const std::vector<std::string>& patterns) {
-    std::vector<std::string> live, matched;
+std::vector<std::string> computedResources(const CompiledGraph& compiled) {
+    std::vector<std::string> live;
     for (const auto& r : compiled.resources())
         if (std::find(live.begin(), live.end(), r.producer) == live.end())
             live.push_back(r.producer);
+    return live;
+}
+
+std::vector<std::string> matchResources(const CompiledGraph& compiled, const std::string& pattern) {
+    std::vector<std::string> matched;
+    for (const auto& name : computedResources(compiled))
+        if (fnmatch(pattern.c_str(), name.c_str(), 0) == 0) matched.push_back(name);
+    return matched;
+}
+
+std::vector<std::string> matchDumps(const CompiledGraph& compiled,
+                                    const std::vector<std::string>& patterns) {
+    std::vector<std::string> matched;
     for (const auto& pattern : patterns) {
-        bool any = false;
-        for (const auto& name : live)
-            if (fnmatch(pattern.c_str(), name.c_str(), 0) == 0) {
-                any = true;
-                if (std::find(matched.begin(), matched.end(), name) == matched.end())
-                    matched.push_back(name);
-            }
-        if (!any) {
+        const auto names = matchResources(compiled, pattern);
+        if (names.empty()) {
             std::string list;
-            for (const auto& n : live) list += (list.empty() ? "" : ", ") + n;
+            for (const auto& n : computedResources(compiled))
+                list += (list.empty() ? "" : ", ") + n;
             throw Error("--dump '" + pattern + "' matches no resource this graph computes for " +
                         "this scene (it computes: " + list + ")");
         }
+        for (const auto& name : names)
+            if (std::find(matched.begin(), matched.end(), name) == matched.end())
+                matched.push_back(name);
     }
     return matched;
 }

@@ -13,6 +13,12 @@
 
 namespace kestrel::cli {
 
+/// The "pass.port" resources `compiled` computes, in the order it lists its resources.
+std::vector<std::string> computedResources(const CompiledGraph& compiled);
+
+/// Those of computedResources() that the shell pattern matches (none: empty).
+std::vector<std::string> matchResources(const CompiledGraph& compiled, const std::string& pattern);
+
 /// The "pass.port" resources of `compiled` that the patterns match, in the order the compiled
 /// graph lists its resources. Throws
 /// Error naming a pattern that matches nothing (with what there is).

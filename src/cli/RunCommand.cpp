@@ -20,6 +20,7 @@
 #include "kestrel/Executor.h"
 #include "kestrel/FramePattern.h"
 #include "kestrel/Log.h"
+#include "kestrel/SequenceRunner.h"
 
 namespace kestrel::cli {
 
@@ -60,6 +61,114 @@ void logReport(const CompiledGraph& g) {
                  g.executionOrder().size(), g.transientPlaneCount(), g.unaliasedPlaneCount());
 }
 
+/// --reference: each frame's error against the reference sequence, and their mean.
+struct ReferenceCheck {
+    std::string pattern, layer;
+    std::string measured;  ///< "pass.port" compared; empty: no --reference
+    bool failed = false;   ///< a reference frame could not be compared (the run stops)
+    std::vector<eval::FrameMetrics> errors;
+
+    /// Throws Error naming the reference file.
+    eval::FrameMetrics measure(const Executor& exec, int64_t frame) {
+        std::string refPath = expandFramePattern(pattern, frame);
+        Image ref = eval::readExrRgb(refPath, layer);
+        ImageView out = exec.output(measured);
+        if (ref.extent() != out.extent)
+            throw FrameError("reference " + refPath + " has another size than the output");
+        auto m = eval::compareImages(out, ref.view(), eval::ToneMap::Reinhard,
+                                     errors.empty() ? nullptr : &prev_, &cur_);
+        std::swap(prev_, cur_);
+        errors.push_back(m);
+        return m;
+    }
+
+private:
+    eval::FrameImages prev_, cur_;
+};
+
+/// What `kestrel run` prints while the frames run: the progress bar (or a line per frame), the
+/// reference error, per-pass times with -v, skipped frames.
+class RunLog : public SequenceObserver {
+public:
+    explicit RunLog(ReferenceCheck& reference) : reference_(reference) {}
+    Progress& progress() { return progress_; }
+
+    void starting(const SequencePlan& plan) override {
+        if (plan.everythingWritten)
+            spdlog::info("--resume: every frame is already written");
+        else if (plan.alreadyWritten > 0)
+            spdlog::info("--resume: {} frames already written; warming history up on {} frames",
+                         plan.alreadyWritten, plan.replayed);
+        progress_ = Progress(plan.schedule.size());
+    }
+
+    void frameDone(const FrameRecord& f, size_t index, const Executor& exec) override {
+        if (!reference_.measured.empty()) {
+            try {
+                auto m = reference_.measure(exec, f.frame);
+                progress_.clear();
+                spdlog::info("frame {}: {:.2f} ms  relMSE {:.5f}  PSNR {:.2f} dB  SSIM {:.4f}",
+                             f.frame, f.ms, m.relMse, m.psnr, m.ssim);
+            } catch (const Error& e) {
+                progress_.clear();
+                std::cerr << "error: --reference: " << e.what() << "\n";
+                reference_.failed = true;
+                return;
+            }
+        }
+        if (gVerbose) {
+            std::string detail;
+            for (const auto& t : f.passes) detail += fmt::format(" {}={:.2f}", t.pass, t.ms);
+            progress_.clear();
+            spdlog::debug("frame {}: {:.2f} ms{}", f.frame, f.ms, detail);
+        }
+        progress_.update(index + 1, f.frame, f.ms, f.written);
+    }
+
+    void frameSkipped(const SkippedFrame& s) override {
+        progress_.clear();
+        spdlog::warn("skipped: {} (history reset)", s.error);
+    }
+
+private:
+    ReferenceCheck& reference_;
+    Progress progress_{0};
+};
+
+double median(std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+}
+
+/// The closing lines: frames run, median time, memory, mean error; per-pass medians with -v.
+void logSummary(const SequenceResult& r, const Executor& exec, const CompiledGraph& compiled,
+                const ReferenceCheck& reference) {
+    if (r.frames.empty()) return;
+    std::vector<double> frameTimes;
+    std::map<std::string, std::vector<double>> passTimes;
+    for (const auto& f : r.frames) {
+        frameTimes.push_back(f.ms);
+        for (const auto& t : f.passes) passTimes[t.pass].push_back(t.ms);
+    }
+    spdlog::info(
+        "{} frames run ({} written{}), median {:.2f} ms per frame, {:.1f} MB of graph "
+        "memory ({:.0f} bytes per pixel)",
+        frameTimes.size(), r.written(),
+        r.skipped.empty() ? std::string() : fmt::format(", {} skipped", r.skipped.size()),
+        median(frameTimes), exec.memory().peakBytes / 1e6,
+        double(exec.memory().peakBytes) / double(std::max<size_t>(1, exec.extent().pixels())));
+    if (!reference.errors.empty()) {
+        double rel = 0, psnr = 0, ssim = 0;
+        for (const auto& m : reference.errors) rel += m.relMse, psnr += m.psnr, ssim += m.ssim;
+        double n = double(reference.errors.size());
+        spdlog::info("mean error of {} ({} frames): relMSE {:.5f}  PSNR {:.2f} dB  SSIM {:.4f}",
+                     reference.measured, reference.errors.size(), rel / n, psnr / n, ssim / n);
+    }
+    for (const auto& n : compiled.executionOrder())
+        if (passTimes.count(n))
+            spdlog::debug("  {:<24} {:8.3f} ms median", n, median(passTimes[n]));
+}
+
 int runGraph(const RunOptions& o) {
     std::unique_ptr<Plugins> plugins;
     std::unique_ptr<CompiledGraph> compiled;
@@ -97,63 +206,31 @@ int runGraph(const RunOptions& o) {
     }
     logReport(*compiled);
 
-    if (frames.empty()) {
-        for (const auto& [name, pass] : compiled->livePasses()) {
-            auto avail = pass->availableFrames();
-            if (!avail.empty()) {
-                frames = avail;
-                break;
-            }
-        }
-        if (frames.empty()) {
-            std::cerr << "error: no frames to run: give --frames A-B\n";
-            return 2;
-        }
+    if (frames.empty() && sourceFrames(*compiled).empty()) {
+        std::cerr << "error: no frames to run: give --frames A-B\n";
+        return 2;
     }
-    // Warm-up frames run before the range without writing (history only), so a sequence cut
-    // into chunks matches the unsplit run.
-    std::vector<std::pair<int64_t, bool>> schedule;  // frame, write
-    if (o.warmup > 0) {
-        int64_t step = frames.size() > 1 ? std::max<int64_t>(1, frames[1] - frames[0]) : 1;
-        for (int i = o.warmup; i >= 1; --i) schedule.push_back({frames.front() - i * step, false});
-    }
-    for (auto f : frames) schedule.push_back({f, true});
+    SequenceOptions so;
+    so.frames = frames;
+    so.warmup = o.warmup;
+    so.resume = o.resume;
+    so.skipBadFrames = o.skipBadFrames;
+    ReferenceCheck reference;
+    reference.pattern = o.reference;
+    reference.layer = o.refLayer;
+    reference.measured = measured;
+    so.stop = [&reference] { return gInterrupted.load() || reference.failed; };
+    SequenceRunner runner(*compiled, so);
     try {
         RunFrames planned;
-        for (auto [f, write] : schedule) {
-            planned.read.push_back(f);
-            if (write) planned.written.push_back(f);
+        for (const auto& f : runner.plan().schedule) {
+            planned.read.push_back(f.frame);
+            if (f.write) planned.written.push_back(f.frame);
         }
         checkOutputsAreSafe(g, plugins->registry, planned, o.reference);
     } catch (const Error& e) {
         std::cerr << "error: " << e.what() << "\n";
         return 2;
-    }
-
-    auto sinks = compiled->sinks();
-    if (o.resume) {
-        // Skip frames whose every output exists; warm history up on the frames just before the
-        // first missing one (at most 32: the longest history any shipped pass keeps).
-        size_t firstMissing = schedule.size();
-        for (size_t i = 0; i < schedule.size(); ++i) {
-            if (!schedule[i].second) continue;
-            bool done = !sinks.empty();
-            for (auto& [n, p] : sinks) done = done && p->frameWritten(schedule[i].first);
-            if (!done) {
-                firstMissing = i;
-                break;
-            }
-        }
-        size_t warm = std::min<size_t>(firstMissing, size_t(std::max(o.warmup, 32)));
-        std::vector<std::pair<int64_t, bool>> resumed;
-        for (size_t i = firstMissing - warm; i < schedule.size(); ++i)
-            resumed.push_back({schedule[i].first, i >= firstMissing && schedule[i].second});
-        if (firstMissing > 0)
-            spdlog::info("--resume: {} frames already written; warming history up on {} frames",
-                         firstMissing, warm);
-        schedule = resumed;
-        if (firstMissing == frames.size() + size_t(std::max(o.warmup, 0)))
-            spdlog::info("--resume: every frame is already written");
     }
 
     Parallel parallel(o.threads);
@@ -162,113 +239,27 @@ int runGraph(const RunOptions& o) {
     info.graphPath = compiled->desc().sourcePath.string();
     info.kestrelVersion = KESTREL_VERSION;
     Executor exec(*compiled, parallel, info, size);
-    try {
-        exec.beginRun(frames.front(), frames.back());
-    } catch (const Error& e) {
-        std::cerr << "error: " << e.what() << "\n";
-        return 1;
-    }
 
     gInterrupted = false;
     auto oldHandler = std::signal(SIGINT, onInterrupt);
-    Progress progress(schedule.size());
-    std::map<std::string, std::vector<double>> passTimes;
-    std::vector<double> frameTimes;
-    int failures = 0, written = 0;
-    eval::FrameImages refPrev, refCur;
-    bool haveRef = false;
-    std::vector<eval::FrameMetrics> errors;
-    int rc = 0;
-    for (size_t i = 0; i < schedule.size(); ++i) {
-        auto [frame, write] = schedule[i];
-        try {
-            exec.runFrame(frame, write);
-        } catch (const FrameError& e) {
-            if (!o.skipBadFrames) {
-                progress.clear();
-                std::cerr << "error: " << e.what() << "\n";
-                rc = 1;
-                break;
-            }
-            progress.clear();
-            spdlog::warn("skipped: {} (history reset)", e.what());
-            exec.resetHistory();
-            ++failures;
-            continue;
-        } catch (const Error& e) {
-            progress.clear();
-            std::cerr << "error: " << e.what() << "\n";
-            rc = 1;
-            break;
-        }
-        if (write) ++written;
-        frameTimes.push_back(exec.lastFrameMs());
-        if (!measured.empty()) {
-            try {
-                std::string refPath = expandFramePattern(o.reference, frame);
-                Image ref = eval::readExrRgb(refPath, o.refLayer);
-                ImageView out = exec.output(measured);
-                if (ref.extent() != out.extent)
-                    throw FrameError("reference " + refPath + " has another size than the output");
-                auto m = eval::compareImages(out, ref.view(), eval::ToneMap::Reinhard,
-                                             haveRef ? &refPrev : nullptr, &refCur);
-                std::swap(refPrev, refCur);
-                haveRef = true;
-                errors.push_back(m);
-                progress.clear();
-                spdlog::info("frame {}: {:.2f} ms  relMSE {:.5f}  PSNR {:.2f} dB  SSIM {:.4f}",
-                             frame, exec.lastFrameMs(), m.relMse, m.psnr, m.ssim);
-            } catch (const Error& e) {
-                progress.clear();
-                std::cerr << "error: --reference: " << e.what() << "\n";
-                rc = 1;
-                break;
-            }
-        }
-        for (const auto& t : exec.lastTimes()) passTimes[t.pass].push_back(t.ms);
-        if (gVerbose) {
-            std::string detail;
-            for (const auto& t : exec.lastTimes())
-                detail += fmt::format(" {}={:.2f}", t.pass, t.ms);
-            progress.clear();
-            spdlog::debug("frame {}: {:.2f} ms{}", frame, exec.lastFrameMs(), detail);
-        }
-        progress.update(i + 1, frame, exec.lastFrameMs(), write);
-        if (gInterrupted) {
-            progress.clear();
-            spdlog::warn("interrupted: stopped after frame {}; every written frame is complete",
-                         frame);
-            rc = 130;
-            break;
-        }
-    }
+    RunLog log(reference);
+    const SequenceResult result = runner.run(exec, &log);
     std::signal(SIGINT, oldHandler);
-    progress.finish();
-    exec.endRun();
-
-    if (!frameTimes.empty()) {
-        auto median = [](std::vector<double> v) {
-            std::sort(v.begin(), v.end());
-            return v[v.size() / 2];
-        };
-        spdlog::info(
-            "{} frames run ({} written{}), median {:.2f} ms per frame, {:.1f} MB of graph "
-            "memory ({:.0f} bytes per pixel)",
-            frameTimes.size(), written,
-            failures ? fmt::format(", {} skipped", failures) : std::string(), median(frameTimes),
-            exec.memory().peakBytes / 1e6,
-            double(exec.memory().peakBytes) / double(std::max<size_t>(1, exec.extent().pixels())));
-        if (!errors.empty()) {
-            double rel = 0, psnr = 0, ssim = 0;
-            for (const auto& m : errors) rel += m.relMse, psnr += m.psnr, ssim += m.ssim;
-            double n = double(errors.size());
-            spdlog::info("mean error of {} ({} frames): relMSE {:.5f}  PSNR {:.2f} dB  SSIM {:.4f}",
-                         measured, errors.size(), rel / n, psnr / n, ssim / n);
-        }
-        for (const auto& n : compiled->executionOrder())
-            if (passTimes.count(n))
-                spdlog::debug("  {:<24} {:8.3f} ms median", n, median(passTimes[n]));
+    int rc = 0;
+    if (result.end == SequenceEnd::Failed) {
+        log.progress().clear();
+        std::cerr << "error: " << result.error << "\n";
+        rc = 1;
+    } else if (reference.failed) {
+        rc = 1;  // RunLog printed why
+    } else if (result.end == SequenceEnd::Stopped) {
+        log.progress().clear();
+        spdlog::warn("interrupted: stopped after frame {}; every written frame is complete",
+                     result.lastFrame);
+        rc = 130;
     }
+    log.progress().finish();
+    logSummary(result, exec, *compiled, reference);
     return rc;
 }
 

@@ -247,12 +247,26 @@ std::string benchHtml(const BenchReport& r, const std::vector<size_t>& pareto) {
     os << "<h2>Error per frame</h2>\n" << errorPerFrame(r);
     os << "<h2>Time per pass</h2>\n" << passBreakdown(r);
     bool anyCrop = r.noisyCrop.extent().pixels() > 0 || r.referenceCrop.extent().pixels() > 0;
-    for (const BenchRow& row : r.rows) anyCrop = anyCrop || row.crop.extent().pixels() > 0;
+    bool intermediates = false;
+    for (const BenchRow& row : r.rows) {
+        anyCrop = anyCrop || row.crop.extent().pixels() > 0;
+        intermediates = intermediates || !row.intermediateCrops.empty();
+    }
     if (anyCrop) {
         os << "<h2>Crops</h2>\n<p>" << escapeXml(r.cropNote) << "</p>\n<div>\n";
         os << cropFigure(r.noisyCrop, r.toneMap, "noisy input");
-        for (const BenchRow& row : r.rows) os << cropFigure(row.crop, r.toneMap, row.name);
-        os << cropFigure(r.referenceCrop, r.toneMap, "reference") << "</div>\n";
+        if (intermediates) {  // one line per setting: what led to its output, then the output
+            os << cropFigure(r.referenceCrop, r.toneMap, "reference") << "</div>\n";
+            for (const BenchRow& row : r.rows) {
+                os << "<div>\n";
+                for (const auto& [name, crop] : row.intermediateCrops)
+                    os << cropFigure(crop, r.toneMap, row.name + ": " + name);
+                os << cropFigure(row.crop, r.toneMap, row.name) << "</div>\n";
+            }
+        } else {
+            for (const BenchRow& row : r.rows) os << cropFigure(row.crop, r.toneMap, row.name);
+            os << cropFigure(r.referenceCrop, r.toneMap, "reference") << "</div>\n";
+        }
     }
     os << "</body></html>\n";
     return os.str();

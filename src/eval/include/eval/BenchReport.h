@@ -9,7 +9,8 @@
 //   bench_passes.csv    one line per setting and pass: ms
 //   bench.html          self-contained: the tables, inline SVG plots (mean relMSE, log scale,
 //                       versus ms per frame with the Pareto front; relMSE per frame; per-pass time
-//                       as stacked bars) and side-by-side crops as PNG data URIs
+//                       as stacked bars) and side-by-side crops as PNG data URIs (with
+//                       intermediates: one line per setting, its intermediates then its output)
 #include <kestrel/Image.h>
 
 #include <cstdint>
@@ -30,6 +31,9 @@ struct BenchRow {
     double msPerFrame = 0;             ///< median over frames after a warm-up
     std::vector<std::pair<std::string, double>> passMs;  ///< per pass, median ms, in run order
     Image crop;  ///< optional: a crop of one output frame, linear RGB (empty: none)
+    /// Optional: the same crop of intermediate resources ("pass.port", linear RGB), shown beside
+    /// the output crop (kestrel bench --crop-dump).
+    std::vector<std::pair<std::string, Image>> intermediateCrops;
 
     /// Means over frames (temporal over the frames that have it).
     FrameMetrics mean() const;

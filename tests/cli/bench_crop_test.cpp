@@ -1,0 +1,73 @@
+// kestrel bench --crop-dump: chosen intermediate resources shown as crops beside each setting's
+// output in the HTML report, on a tiny generated scene.
+#include <map>
+
+#include "CliRunner.h"
+
+using namespace clitest;
+
+namespace {
+
+/// The report's crop figures: caption (alt text) -> the PNG's data URI.
+std::map<std::string, std::string> figures(const std::string& html) {
+    std::map<std::string, std::string> out;
+    const std::string img = "<figure><img alt='", src = "src='data:image/png;base64,";
+    for (size_t p = html.find(img); p != std::string::npos; p = html.find(img, p + 1)) {
+        const size_t a = p + img.size();
+        const std::string alt = html.substr(a, html.find('\'', a) - a);
+        const size_t s = html.find(src, a) + src.size();
+        out[alt] = html.substr(s, html.find('\'', s) - s);
+    }
+    return out;
+}
+
+/// The one caption starting with `prefix` and ending with `suffix` ("" when none or several).
+std::string captionLike(const std::map<std::string, std::string>& f, const std::string& prefix,
+                        const std::string& suffix) {
+    std::string found;
+    int n = 0;
+    for (const auto& [alt, data] : f)
+        if (alt.rfind(prefix, 0) == 0 && alt.size() >= suffix.size() &&
+            alt.compare(alt.size() - suffix.size(), suffix.size(), suffix) == 0)
+            found = alt, ++n;
+    return n == 1 ? found : "";
+}
+
+}  // namespace
+
+TEST(CliBench, CropDumpShowsIntermediatesBesideTheOutput) {
+    Sandbox box;
+    if (!makeScene(box, box.work() / "scene", 32, 24, 4))
+        GTEST_SKIP() << "no scenegen in this build";
+    auto bench = [&](std::vector<std::string> extra) {
+        std::vector<std::string> args = {
+            "bench",       std::string(KESTREL_SOURCE_DIR) + "/graphs/svgf.json",
+            "--input",     "scene/noisy/frame_####.exr",
+            "--reference", "scene/ref/frame_####.exr",
+            "--threads",   "2",
+            "--report",    "rep"};
+        args.insert(args.end(), extra.begin(), extra.end());
+        return box.run(args);
+    };
+    const CliResult r = bench({"--crop-dump", "*atrous0.color", "--crop-dump", "*modulate.color"});
+    ASSERT_EQ(r.code, 0) << r.all();
+    const auto f = figures(readText(box.work() / "rep" / "bench.html"));
+    ASSERT_TRUE(f.count("svgf")) << "the output crop";
+    const std::string atrous = captionLike(f, "svgf: ", "atrous0.color");
+    const std::string modulate = captionLike(f, "svgf: ", "modulate.color");
+    ASSERT_FALSE(atrous.empty()) << r.all();
+    ASSERT_FALSE(modulate.empty()) << r.all();
+    // The room is point-sampled, so svgf.json leaves TAA out and its output is the modulated
+    // colour: the same crop of the same frame gives the same PNG. A-Trous 0 is earlier: not it.
+    EXPECT_TRUE(f.at(modulate) == f.at("svgf")) << modulate << " is not the output's crop";
+    EXPECT_FALSE(f.at(atrous) == f.at("svgf")) << atrous << " is the output's crop";
+    // The unfiltered-input row computes neither.
+    EXPECT_TRUE(captionLike(f, "input (unfiltered): ", "").empty());
+
+    const CliResult typo = bench({"--crop-dump", "*atrous9.color"});
+    EXPECT_EQ(typo.code, 2) << typo.all();
+    ASSERT_EQ(typo.errorLines().size(), 1u) << typo.all();
+    EXPECT_NE(typo.errorLines()[0].find("--crop-dump '*atrous9.color' matches no resource"),
+              std::string::npos)
+        << typo.all();
+}
