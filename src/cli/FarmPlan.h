@@ -12,7 +12,7 @@ namespace kestrel::cli {
 
 /// Warm-up frames a chunk runs before its first written frame unless --warmup says otherwise.
 /// Measured by scripts/farm-warmup.sh (docs/farm.md has the table and the bound it gives).
-constexpr int kDefaultFarmWarmup = 8;
+constexpr int kDefaultFarmWarmup = 16;
 
 /// What the user asks for (paths as given; makePlan makes them absolute).
 struct FarmOptions {
