@@ -101,9 +101,14 @@ int planCommand(FarmArgs a) {
             fs::permissions(a.out, fs::perms::owner_exec | fs::perms::group_exec,
                             fs::perm_options::add, ec);
     }
+    // What the warm-up costs: frames run without being written, against the shot's length.
+    int64_t extra = 0;
+    for (const auto& t : plan.tasks) extra += t.warmup;
+    const int64_t shot = plan.last - plan.first + 1;
     std::cerr << "farm plan: frames " << plan.first << "-" << plan.last << " in "
               << plan.tasks.size() << " tasks of " << plan.chunk << ", warm-up " << plan.warmup
-              << ", logs in " << plan.logDir << "\n";
+              << " (" << extra << " frames run twice, " << (100 * extra + shot / 2) / shot
+              << "% more), logs in " << plan.logDir << "\n";
     return 0;
 }
 
@@ -150,6 +155,9 @@ void addFarmCommand(CLI::App& app, Action& action) {
         "plan",
         "Split --frames A-B into tasks of --chunk frames (Slurm array, command list, JSON)");
     addPlanOptions(plan, *planArgs);
+    plan->footer(
+        "Other options are kestrel run options, given to every task (--threads 8, "
+        "--skip-bad-frames). docs/farm.md has examples.");
     plan->add_option("--format", planArgs->format, "slurm (sbatch script), commands, json")
         ->check(CLI::IsMember({"slurm", "commands", "json"}));
     plan->add_option("--out", planArgs->out, "Write the plan to this file (default: stdout)");
