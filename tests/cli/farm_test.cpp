@@ -224,3 +224,14 @@ TEST_F(Farm, CameraCutInsideTheWarmupMakesChunksIdenticalAfterIt) {
         for (const auto& [frame, err] : e) EXPECT_EQ(err, 0.0) << chunked << " frame " << frame;
     }
 }
+
+TEST_F(Farm, TaskCommandsSurviveTheShellWithSpacesAndQuotesInPaths) {
+    if (!makeZooScene("room", 4)) GTEST_SKIP() << "no scenegen in this build";
+    const std::string out = "it's a shot/out";  // a space and a single quote
+    auto args = planArgs("plan", out, "1-4", 2);
+    ASSERT_EQ(planAndRun(args).code, 0);
+    EXPECT_EQ(countFiles(box.work() / out, ".exr"), 4);
+    CliResult r = box.run(planArgs("check", out, "1-4", 2));
+    EXPECT_EQ(r.code, 0) << r.all();
+    EXPECT_NE(r.out.find("4 complete, 0 missing, 0 broken"), std::string::npos) << r.out;
+}
