@@ -53,6 +53,7 @@ enum class Outcome { Ran, Skipped, Failed };
 /// Runs one scheduled frame, recording its time, its skip or the run's failure in `result`.
 /// Only the executor's errors are caught here: an observer's are the observer's.
 Outcome runOne(Executor& exec, ScheduledFrame f, const SequenceOptions& o, SequenceResult& result) {
+    if (o.cuts.count(f.frame)) exec.resetHistory();
     try {
         exec.runFrame(f.frame, f.write && o.writeOutputs);
     } catch (const FrameError& e) {

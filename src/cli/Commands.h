@@ -16,5 +16,6 @@ void addGraphCommand(CLI::App& app, Action& action);
 void addScenegenCommand(CLI::App& app, Action& action);
 void addCompareCommand(CLI::App& app, Action& action);
 void addBenchCommand(CLI::App& app, Action& action);
+void addFarmCommand(CLI::App& app, Action& action);
 
 }  // namespace kestrel::cli

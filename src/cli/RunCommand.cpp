@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <iostream>
 #include <map>
+#include <set>
 
 #include "Commands.h"
 #include "Common.h"
@@ -44,6 +45,7 @@ struct RunOptions {
     std::string reference, refLayer;  // print each frame's error against these frames
     std::vector<std::string> dumps;   // --dump patterns
     std::string dumpDir;
+    std::string cuts;  // --cuts: frames where history is reset (camera cuts)
 };
 
 void logReport(const CompiledGraph& g) {
@@ -170,9 +172,11 @@ void logSummary(const SequenceResult& r, const Executor& exec, const CompiledGra
 }
 
 int runGraph(const RunOptions& o) {
+    const auto runStart = std::chrono::steady_clock::now();
     std::unique_ptr<Plugins> plugins;
     std::unique_ptr<CompiledGraph> compiled;
     std::vector<int64_t> frames;
+    std::set<int64_t> cuts;
     Extent size{};
     std::string measured;  // "pass.port" compared with --reference
     GraphDesc g;
@@ -180,6 +184,13 @@ int runGraph(const RunOptions& o) {
         plugins = loadPlugins();
         g = prepareGraph(o.graph, plugins->registry);
         if (!o.frames.empty()) frames = parseFrameList(o.frames);
+        if (!o.cuts.empty()) {
+            try {
+                for (auto f : parseFrameRange(o.cuts)) cuts.insert(f);
+            } catch (const Error& e) {
+                throw Error(std::string("--cuts: ") + e.what());
+            }
+        }
         if (!o.size.empty()) {
             if (std::sscanf(o.size.c_str(), "%dx%d", &size.width, &size.height) != 2 ||
                 size.width <= 0 || size.height <= 0)
@@ -215,6 +226,7 @@ int runGraph(const RunOptions& o) {
     so.warmup = o.warmup;
     so.resume = o.resume;
     so.skipBadFrames = o.skipBadFrames;
+    so.cuts = cuts;
     ReferenceCheck reference;
     reference.pattern = o.reference;
     reference.layer = o.refLayer;
@@ -260,6 +272,11 @@ int runGraph(const RunOptions& o) {
     }
     log.progress().finish();
     logSummary(result, exec, *compiled, reference);
+    // One fixed-format line per run that reached frame 1: `kestrel farm check` reads each task's
+    // wall time and outcome from its log (FarmCheck.cpp parses this text; keep them in step).
+    spdlog::info(
+        "run finished: exit {}, {} frames written, wall {:.2f} s", rc, result.written(),
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - runStart).count());
     return rc;
 }
 
@@ -289,6 +306,8 @@ void addRunCommand(CLI::App& app, Action& action) {
                   "Skip frames whose output exists, warming history up first");
     cmd->add_option("--warmup", o->warmup, "Run N frames before the range without writing them")
         ->check(CLI::Range(0, 100000));
+    cmd->add_option("--cuts", o->cuts,
+                    "Camera cuts: frames (7,120 or 7-9) before which history is reset");
     cmd->add_flag("--skip-bad-frames", o->skipBadFrames,
                   "Skip missing or corrupt frames (history is reset)");
     cmd->add_option(

@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
     kestrel::cli::addValidateCommand(app, action);
     kestrel::cli::addPassesCommand(app, action);
     kestrel::cli::addGraphCommand(app, action);
+    kestrel::cli::addFarmCommand(app, action);
 #ifdef KESTREL_HAS_SCENEGEN
     kestrel::cli::addScenegenCommand(app, action);
 #endif

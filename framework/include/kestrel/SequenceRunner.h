@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,9 @@ struct SequenceOptions {
     /// A FrameError (missing or corrupt input) skips the frame and resets history instead of
     /// ending the run.
     bool skipBadFrames = false;
+    /// Camera cuts: history is reset before each of these frames, as at the start of a run, so
+    /// a chunk whose warm-up contains the cut gives the unsplit run's frames from the cut on.
+    std::set<int64_t> cuts;
     /// false: no frame writes its outputs (timing runs).
     bool writeOutputs = true;
     /// Polled after every frame: true ends the run there (an interrupt, a caller's failure).

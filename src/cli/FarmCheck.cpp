@@ -1,0 +1,140 @@
+#include "FarmCheck.h"
+
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <regex>
+#include <set>
+
+#include "Common.h"
+#include "kestrel/Compiler.h"
+#include "kestrel/Error.h"
+#include "kestrel/FramePattern.h"
+#include "kestrel/Log.h"
+
+namespace kestrel::cli {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+enum class FrameState { Complete, Missing, Broken };
+
+/// One writer of the plan's graph: its frame pattern and the pass that judges its files.
+struct Writer {
+    std::string name;
+    FramePattern path;
+    const Pass* pass;
+};
+
+std::vector<Writer> planWriters(const FarmPlan& plan, const CompiledGraph& g) {
+    std::vector<Writer> writers;
+    for (const auto& [name, pass] : g.sinks()) {
+        for (const auto& n : g.desc().passes) {
+            if (n.name != name) continue;
+            auto params = nlohmann::json::parse(n.paramsJson);
+            if (params.contains("path") && params["path"].is_string())
+                writers.push_back({name, FramePattern(params["path"].get<std::string>()), pass});
+        }
+    }
+    if (writers.empty()) throw Error(plan.graph + ": the graph writes no files to check");
+    return writers;
+}
+
+/// The state of one frame over every writer; `file` names the first file that is not complete.
+FrameState frameState(const std::vector<Writer>& writers, int64_t frame, std::string& file) {
+    for (const auto& w : writers) {
+        file = w.path.expand(frame);
+        std::error_code ec;
+        if (!fs::exists(file, ec)) return FrameState::Missing;
+        // The writer's own rule; it warns that it would rewrite the file, which is not news here.
+        const auto level = spdlog::get_level();
+        spdlog::set_level(spdlog::level::err);
+        const bool complete = w.pass->frameWritten(frame);
+        spdlog::set_level(level);
+        if (!complete) return FrameState::Broken;
+    }
+    return FrameState::Complete;
+}
+
+std::string taskLine(const FarmTask& t, bool rerun, const TaskLog& log) {
+    std::string frames = std::to_string(t.first) + "-" + std::to_string(t.last);
+    std::string s = fmt::format("task {:<4} frames {:<13} {:<9}", t.index, frames,
+                                rerun ? "RE-RUN" : "complete");
+    if (!log.found) return s + " no log (" + t.log + ")";
+    if (log.attempts == 0)
+        return s + " no run finished in the log" +
+               (log.lastError.empty() ? "" : ": " + log.lastError);
+    s += fmt::format(" wall {:.2f} s, {} frames written, exit {}", log.wallSeconds, log.written,
+                     log.exitCode);
+    if (log.attempts > 1) s += fmt::format(" (attempt {})", log.attempts);
+    return s;
+}
+
+}  // namespace
+
+TaskLog readTaskLog(const std::string& path) {
+    TaskLog r;
+    std::ifstream in(path);
+    if (!in) return r;
+    r.found = true;
+    // Written by RunCommand.cpp at the end of every run that reached frame 1.
+    static const std::regex finished(
+        R"(run finished: exit (\d+), (\d+) frames written, wall ([0-9.]+) s)");
+    std::string line;
+    while (std::getline(in, line)) {
+        std::smatch m;
+        if (std::regex_search(line, m, finished)) {
+            ++r.attempts;
+            r.exitCode = std::stoi(m[1]);
+            r.written = std::stoi(m[2]);
+            r.wallSeconds = std::stod(m[3]);
+        } else if (line.rfind("error:", 0) == 0) {
+            r.lastError = line;
+        }
+    }
+    return r;
+}
+
+int checkPlan(const FarmPlan& plan) {
+    auto plugins = loadPlugins();
+    GraphOptions go;
+    go.graph = plan.graph;
+    go.inputs = plan.inputs;
+    go.outputs = plan.outputs;
+    go.sets = plan.sets;
+    GraphDesc desc = prepareGraph(go, plugins->registry);
+    CompileOptions copt;
+    copt.firstFrame = plan.first;
+    auto compiled = compileGraph(desc, plugins->registry, copt);
+    const auto writers = planWriters(plan, *compiled);
+
+    std::set<int> rerun;
+    int missing = 0, broken = 0;
+    for (int64_t f = plan.first; f <= plan.last; ++f) {
+        std::string file;
+        const FrameState s = frameState(writers, f, file);
+        if (s == FrameState::Complete) continue;
+        const FarmTask* t = plan.taskOf(f);
+        if (t) rerun.insert(t->index);
+        (s == FrameState::Missing ? missing : broken)++;
+        std::cout << (s == FrameState::Missing ? "missing" : "broken ") << " frame " << f << ": "
+                  << file << (s == FrameState::Broken ? " (incomplete or unreadable EXR)" : "")
+                  << (t ? " (task " + std::to_string(t->index) + ")" : "") << "\n";
+    }
+    const int64_t total = plan.last - plan.first + 1;
+    std::cout << fmt::format(
+        "farm check: frames {}-{} in {} tasks: {} complete, {} missing, {} broken\n", plan.first,
+        plan.last, plan.tasks.size(), total - missing - broken, missing, broken);
+    for (const auto& t : plan.tasks)
+        std::cout << taskLine(t, rerun.count(t.index) > 0, readTaskLog(t.log)) << "\n";
+    if (rerun.empty()) return 0;
+    std::string list;
+    for (int i : rerun) list += (list.empty() ? "" : ",") + std::to_string(i);
+    std::cout << "re-run tasks " << list << " (Slurm: sbatch --array=" << list
+              << " PLAN_SCRIPT; command list: those lines, counted from 0)\n";
+    return 1;
+}
+
+}  // namespace kestrel::cli
