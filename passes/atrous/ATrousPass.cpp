@@ -1,8 +1,10 @@
+// Compiled once per SIMD target (hwy/foreach_target.h re-includes this file for each one); the
+// per-target kernels live in kestrel::N_<TARGET>, everything else in the HWY_ONCE part at the
+// end, which picks the best target of the running CPU (HWY_DYNAMIC_DISPATCH).
 #include "ATrousPass.h"
 
 #include <kestrel/PixelMath.h>
 #include <kestrel/Scratch.h>
-#include <kestrel/SimdMath.h>
 
 #include <algorithm>
 #include <cstdint>
@@ -11,51 +13,41 @@
 
 #include "ATrousReference.h"
 
-using namespace kestrel;
+#ifndef KESTREL_ATROUS_BINDINGS_
+#define KESTREL_ATROUS_BINDINGS_
+namespace {
+/// The pass's bound images, shared by the fast (per-target) and the exact path.
+struct Bindings {
+    explicit Bindings(kestrel::PassIO& io)
+        : color(io.input("color")),
+          depth(io.input("depth")),
+          normal(io.input("normal")),
+          var(io.hasInput("variance") ? &io.input("variance") : nullptr),
+          idView(io.hasInput("objectId") ? &io.input("objectId") : nullptr),
+          ids(idView ? idView->ints() : nullptr),
+          outColor(io.output("color")),
+          outVar(var && io.hasOutput("variance") ? &io.output("variance") : nullptr) {}
+    const kestrel::ImageView &color, &depth, &normal;
+    const kestrel::ImageView *var, *idView;
+    const int32_t* ids;
+    const kestrel::ImageView& outColor;
+    const kestrel::ImageView* outVar;
+};
+}  // namespace
+#endif
 
-PassDesc ATrousPass::describe() {
-    PassDesc d("ATrous",
-               "One edge-avoiding A-Trous iteration (SVGF eq. 1-5): 5x5 B-spline taps at multiples"
-               " of `step`, weighted by depth, normal, object id and variance-normalised luminance;"
-               " variance propagated as sum(w^2 Var) / (sum w)^2.");
-    d.input("color", Format::Float3, "illumination to filter")
-        .optionalInput("variance", Format::Float,
-                       "luminance variance; without it the luminance weight uses sigmaColor")
-        .input("depth", Format::Float, "linear view depth")
-        .input("normal", Format::Float3, "world-space unit normal")
-        .optionalInput("objectId", Format::Int32, "object id: taps on another object get weight 0")
-        .output("color", Format::Float3, "filtered illumination")
-        .output("variance", Format::Float, "propagated variance (absent without variance input)")
-        .paramInt("step", 1, 1, 1024, "tap spacing in pixels (2^iteration)")
-        .paramFloat("sigmaZ", 1.0, 0.0, 1e6, "depth weight: tolerance in units of the depth slope")
-        .paramFloat("sigmaN", 128.0, 0.0, 1e4, "normal weight exponent on max(0, n_p . n_q)")
-        .paramFloat("sigmaL", 4.0, 0.0, 1e6, "luminance weight: tolerance in standard deviations")
-        .paramFloat("sigmaColor", 0.6, 1e-6, 1e6,
-                    "luminance tolerance (absolute) used when no variance is bound")
-        .paramBool("exact", false,
-                   "run the plain scalar path (libm exp/pow, no SIMD) to measure what the fast"
-                   " path's approximations cost in error; several times slower");
-    return d;
-}
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "ATrousPass.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+// After foreach_target.h: once per target.
+#include <hwy/highway.h>
+#include <kestrel/SimdMath.h>
 
-ATrousPass::ATrousPass(const ParamValues& p) {
-    s_.step = int(p.getInt("step"));
-    s_.sigmaZ = p.getFloat("sigmaZ");
-    s_.sigmaN = p.getFloat("sigmaN");
-    s_.sigmaL = p.getFloat("sigmaL");
-    s_.sigmaColor = p.getFloat("sigmaColor");
-    exact_ = p.getBool("exact");
-}
-
-void ATrousPass::resolve(ResolveContext& rc) {
-    if (!rc.isBound("variance")) {
-        rc.setAbsent("variance", "no variance input");
-        rc.note("no variance input: luminance weight uses the fixed sigmaColor");
-    }
-}
-
+HWY_BEFORE_NAMESPACE();
+namespace kestrel::HWY_NAMESPACE {
 namespace {
 
+namespace hn = hwy::HWY_NAMESPACE;
 constexpr float kH[5] = {1.f / 16.f, 1.f / 4.f, 3.f / 8.f, 1.f / 4.f, 1.f / 16.f};
 constexpr float kEpsL = 1e-10f;    // SVGF eq. 5 epsilon (Falcor uses 1e-10 too)
 constexpr float kEpsZRel = 1e-5f;  // depth tolerance floor relative to z: float depth noise
@@ -111,7 +103,6 @@ void horizontalInvL(const float* __restrict v, float* __restrict invL, int n, fl
     invL[0] = finish((0.5f * v[0] + 0.25f * v[1]) / 0.75f);
     // Explicit vectors: GCC leaves this loop scalar (sqrt and division one lane at a time took
     // a fifth of the preparation's time).
-    namespace hn = hwy::HWY_NAMESPACE;
     const simd::DF d;
     const int lanes = int(hn::Lanes(d));
     const auto quarter = hn::Set(d, 0.25f), half = hn::Set(d, 0.5f), one = hn::Set(d, 1.f);
@@ -128,7 +119,6 @@ void horizontalInvL(const float* __restrict v, float* __restrict invL, int n, fl
     invL[n - 1] = finish((0.5f * v[n - 1] + 0.25f * v[n - 2]) / 0.75f);
 }
 
-namespace hn = hwy::HWY_NAMESPACE;
 using simd::DF;
 using simd::DI;
 using simd::VF;
@@ -401,27 +391,15 @@ void filterRange(int y0, int y1, int width, size_t pitch, int height, const ATro
     }
 }
 
-}  // namespace
-
-void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
+/// The fast path (everything but `exact`) for this target.
+void filterFast(FrameContext& ctx, PassIO& io, const ATrousPass::Settings& s_) {
+    const Bindings b(io);
     const int width = ctx.extent.width, height = ctx.extent.height;
-    const ImageView& color = io.input("color");
-    const ImageView& depth = io.input("depth");
-    const ImageView& normal = io.input("normal");
-    const bool hasVar = io.hasInput("variance");
-    const ImageView* var = hasVar ? &io.input("variance") : nullptr;
-    const int32_t* ids = io.hasInput("objectId") ? io.input("objectId").ints() : nullptr;
-    const ImageView& outColor = io.output("color");
-    const ImageView* outVar = hasVar && io.hasOutput("variance") ? &io.output("variance") : nullptr;
-    if (exact_) {
-        const ImageView* idView = ids ? &io.input("objectId") : nullptr;
-        const reference::ATrousInputs in{&color,  var,       &depth,    &normal,   idView,
-                                         s_.step, s_.sigmaZ, s_.sigmaN, s_.sigmaL, s_.sigmaColor};
-        ctx.parallelRows(height,
-                         [&](int y0, int y1) { reference::atrous(in, outColor, outVar, y0, y1); });
-        return;
-    }
-
+    const ImageView &color = b.color, &depth = b.depth, &normal = b.normal;
+    const ImageView* var = b.var;
+    const int32_t* ids = b.ids;
+    const ImageView& outColor = b.outColor;
+    const ImageView* outVar = b.outVar;
     // The image is filtered in bands of rows, each with private scratch planes covering the
     // band and the rows its taps reach (2 step above and below): scratch then scales with the
     // band, not the frame (at 1080p and step 16, 13 planes of 128 rows, ~13 MB per thread, and
@@ -443,7 +421,7 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
     const size_t bandPixels = margin + size_t(maxRows) * pitch;
     const float sigmaL = s_.sigmaL, sigmaColor = s_.sigmaColor;
     const bool useNormal = s_.sigmaN > 0.f;
-    const Settings s = s_;
+    const ATrousPass::Settings s = s_;
     // Inputs are nearly always clean (the previous iteration's output, the loader's geometry),
     // so every band first reads them in place, without copying nine planes into scratch
     // (1080p, 1 thread, min of 5, three alternating rounds: step 1 51-52 -> 44-45 ms, step 16
@@ -590,3 +568,70 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
     }
     if (!dirty.empty()) filterBands(dirty, false);
 }
+
+}  // namespace
+}  // namespace kestrel::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace kestrel {
+namespace {
+HWY_EXPORT(filterFast);
+}  // namespace
+}  // namespace kestrel
+
+using namespace kestrel;
+
+PassDesc ATrousPass::describe() {
+    PassDesc d("ATrous",
+               "One edge-avoiding A-Trous iteration (SVGF eq. 1-5): 5x5 B-spline taps at multiples"
+               " of `step`, weighted by depth, normal, object id and variance-normalised luminance;"
+               " variance propagated as sum(w^2 Var) / (sum w)^2.");
+    d.input("color", Format::Float3, "illumination to filter")
+        .optionalInput("variance", Format::Float,
+                       "luminance variance; without it the luminance weight uses sigmaColor")
+        .input("depth", Format::Float, "linear view depth")
+        .input("normal", Format::Float3, "world-space unit normal")
+        .optionalInput("objectId", Format::Int32, "object id: taps on another object get weight 0")
+        .output("color", Format::Float3, "filtered illumination")
+        .output("variance", Format::Float, "propagated variance (absent without variance input)")
+        .paramInt("step", 1, 1, 1024, "tap spacing in pixels (2^iteration)")
+        .paramFloat("sigmaZ", 1.0, 0.0, 1e6, "depth weight: tolerance in units of the depth slope")
+        .paramFloat("sigmaN", 128.0, 0.0, 1e4, "normal weight exponent on max(0, n_p . n_q)")
+        .paramFloat("sigmaL", 4.0, 0.0, 1e6, "luminance weight: tolerance in standard deviations")
+        .paramFloat("sigmaColor", 0.6, 1e-6, 1e6,
+                    "luminance tolerance (absolute) used when no variance is bound")
+        .paramBool("exact", false,
+                   "run the plain scalar path (libm exp/pow, no SIMD) to measure what the fast"
+                   " path's approximations cost in error; several times slower");
+    return d;
+}
+
+ATrousPass::ATrousPass(const ParamValues& p) {
+    s_.step = int(p.getInt("step"));
+    s_.sigmaZ = p.getFloat("sigmaZ");
+    s_.sigmaN = p.getFloat("sigmaN");
+    s_.sigmaL = p.getFloat("sigmaL");
+    s_.sigmaColor = p.getFloat("sigmaColor");
+    exact_ = p.getBool("exact");
+}
+
+void ATrousPass::resolve(ResolveContext& rc) {
+    if (!rc.isBound("variance")) {
+        rc.setAbsent("variance", "no variance input");
+        rc.note("no variance input: luminance weight uses the fixed sigmaColor");
+    }
+}
+
+void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
+    if (!exact_) {
+        HWY_DYNAMIC_DISPATCH(filterFast)(ctx, io, s_);
+        return;
+    }
+    const Bindings b(io);
+    const reference::ATrousInputs in{&b.color, b.var,     &b.depth,  &b.normal, b.idView,
+                                     s_.step,  s_.sigmaZ, s_.sigmaN, s_.sigmaL, s_.sigmaColor};
+    ctx.parallelRows(ctx.extent.height,
+                     [&](int y0, int y1) { reference::atrous(in, b.outColor, b.outVar, y0, y1); });
+}
+#endif  // HWY_ONCE

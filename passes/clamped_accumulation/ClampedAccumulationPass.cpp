@@ -1,3 +1,7 @@
+// Compiled once per SIMD target (hwy/foreach_target.h re-includes this file for each one):
+// the scalar loops auto-vectorise for each instruction set (and std::fma becomes one
+// instruction where there is FMA); the HWY_ONCE part at the end picks the running CPU's
+// best target.
 #include "ClampedAccumulationPass.h"
 
 #include <algorithm>
@@ -5,8 +9,13 @@
 #include <limits>
 #include <vector>
 
-namespace kestrel::passes {
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "ClampedAccumulationPass.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+#include <hwy/highway.h>
 
+HWY_BEFORE_NAMESPACE();
+namespace kestrel::passes::HWY_NAMESPACE {
 namespace {
 
 // Inputs are clamped to this magnitude: squares of 49+ window samples then stay finite.
@@ -129,40 +138,9 @@ void interiorBlock(const Params& p, int r, int x0, const RowIo& io) {
 // Per-thread scratch: a ring of 2 radius + 1 sanitised rows per channel.
 thread_local std::vector<float> tRing;
 
-}  // namespace
-
-PassDesc ClampedAccumulationPass::describe() {
-    PassDesc d("ClampedAccumulation",
-               "GAMES202 temporal accumulation: alpha*C + (1-alpha)*clamp(history, mu-k*sigma, "
-               "mu+k*sigma) over a window of the current colour");
-    d.input("color", Format::Float3, "current (spatially filtered) colour")
-        .optionalInput("history", Format::Float3, "previous output reprojected to this frame")
-        .optionalInput("historyLength", Format::Float,
-                       "reprojection validity: 0 where the projection failed (alpha = 1 there)")
-        .output("color", Format::Float3, "accumulated colour")
-        .paramFloat("alpha", 0.2, 0.0, 1.0, "weight of the current colour where history is valid")
-        .paramFloat("k", 1.0, 0.0, 1000.0, "half-width of the colour box in standard deviations")
-        .paramInt("radius", 3, 0, 32, "window radius of the mean/sigma statistics (3: 7x7)")
-        .paramBool("holdCurrent", false,
-                   "widen the box to contain the current colour (off: the homework's box), so "
-                   "that a history equal to the current colour is never pulled away from it");
-    return d;
-}
-
-ClampedAccumulationPass::ClampedAccumulationPass(const ParamValues& params)
-    : alpha_(params.getFloat("alpha")),
-      k_(params.getFloat("k")),
-      radius_(int(params.getInt("radius"))),
-      holdCurrent_(params.getBool("holdCurrent")) {}
-
-void ClampedAccumulationPass::resolve(ResolveContext& rc) {
-    if (!rc.isBound("history")) {
-        rc.forward("color", "color");
-        rc.note("no history bound: the output is the current colour");
-    }
-}
-
-void ClampedAccumulationPass::execute(FrameContext& ctx, PassIO& io) {
+/// The pass for this target (its parameters as arguments).
+void executeOnTarget(FrameContext& ctx, PassIO& io, float alpha_, float k_, int radius_,
+                     bool holdCurrent_) {
     const ImageView& cur = io.input("color");
     const ImageView& out = io.output("color");
     const int w = cur.width(), h = cur.height(), r = radius_;
@@ -228,4 +206,50 @@ void ClampedAccumulationPass::execute(FrameContext& ctx, PassIO& io) {
     });
 }
 
+}  // namespace
+}  // namespace kestrel::passes::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace kestrel::passes {
+namespace {
+HWY_EXPORT(executeOnTarget);
+}  // namespace
+
+PassDesc ClampedAccumulationPass::describe() {
+    PassDesc d("ClampedAccumulation",
+               "GAMES202 temporal accumulation: alpha*C + (1-alpha)*clamp(history, mu-k*sigma, "
+               "mu+k*sigma) over a window of the current colour");
+    d.input("color", Format::Float3, "current (spatially filtered) colour")
+        .optionalInput("history", Format::Float3, "previous output reprojected to this frame")
+        .optionalInput("historyLength", Format::Float,
+                       "reprojection validity: 0 where the projection failed (alpha = 1 there)")
+        .output("color", Format::Float3, "accumulated colour")
+        .paramFloat("alpha", 0.2, 0.0, 1.0, "weight of the current colour where history is valid")
+        .paramFloat("k", 1.0, 0.0, 1000.0, "half-width of the colour box in standard deviations")
+        .paramInt("radius", 3, 0, 32, "window radius of the mean/sigma statistics (3: 7x7)")
+        .paramBool("holdCurrent", false,
+                   "widen the box to contain the current colour (off: the homework's box), so "
+                   "that a history equal to the current colour is never pulled away from it");
+    return d;
+}
+
+ClampedAccumulationPass::ClampedAccumulationPass(const ParamValues& params)
+    : alpha_(params.getFloat("alpha")),
+      k_(params.getFloat("k")),
+      radius_(int(params.getInt("radius"))),
+      holdCurrent_(params.getBool("holdCurrent")) {}
+
+void ClampedAccumulationPass::resolve(ResolveContext& rc) {
+    if (!rc.isBound("history")) {
+        rc.forward("color", "color");
+        rc.note("no history bound: the output is the current colour");
+    }
+}
+
+void ClampedAccumulationPass::execute(FrameContext& ctx, PassIO& io) {
+    HWY_DYNAMIC_DISPATCH(executeOnTarget)(ctx, io, alpha_, k_, radius_, holdCurrent_);
+}
+
 }  // namespace kestrel::passes
+#endif  // HWY_ONCE

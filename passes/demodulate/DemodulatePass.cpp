@@ -1,6 +1,65 @@
+// Compiled once per SIMD target (hwy/foreach_target.h re-includes this file for each one):
+// the scalar loops auto-vectorise for each instruction set (and std::fma becomes one
+// instruction where there is FMA); the HWY_ONCE part at the end picks the running CPU's
+// best target.
 #include "DemodulatePass.h"
 
 #include <kestrel/PixelMath.h>
+
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "DemodulatePass.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+#include <hwy/highway.h>
+
+HWY_BEFORE_NAMESPACE();
+namespace kestrel::HWY_NAMESPACE {
+namespace {
+
+// One channel of one row: (colour - emission) / albedo, sanitised. A, E: albedo, emission fed
+// (compile-time, so the loop is branch-free and vectorises).
+template <bool A, bool E>
+void demodulateRow(int w, const float* src, const float* __restrict a, const float* __restrict e,
+                   float* dst, float floor) {
+    // dst may be src (in place): each pixel is read before it is written, so no iteration
+    // depends on another.
+#pragma GCC ivdep
+    for (int x = 0; x < w; ++x) {
+        float v = px::sanitize(src[x]);
+        if constexpr (E) v -= px::sanitize(e[x]);
+        if constexpr (A) v /= px::demodulationAlbedo(a[x], floor);
+        dst[x] = px::sanitize(v);
+    }
+}
+
+/// The pass for this target (its parameters as arguments).
+void executeOnTarget(FrameContext& ctx, PassIO& io, float albedoFloor_) {
+    const ImageView& color = io.input("color");
+    const ImageView* albedo = io.hasInput("albedo") ? &io.input("albedo") : nullptr;
+    const ImageView* emission = io.hasInput("emission") ? &io.input("emission") : nullptr;
+    const ImageView& out = io.output("illumination");
+    // A zero floor would divide by zero on black albedo: keep the divisor a normal float.
+    const float floor = std::max(albedoFloor_, 1e-8f);
+    const int w = ctx.extent.width;
+    auto row = albedo ? (emission ? demodulateRow<true, true> : demodulateRow<true, false>)
+                      : (emission ? demodulateRow<false, true> : demodulateRow<false, false>);
+    ctx.parallelRows(ctx.extent.height, [&](int y0, int y1) {
+        for (int y = y0; y < y1; ++y)
+            for (int c = 0; c < 3; ++c)
+                row(w, color.row(c, y), albedo ? albedo->row(c, y) : nullptr,
+                    emission ? emission->row(c, y) : nullptr, out.row(c, y), floor);
+    });
+}
+
+}  // namespace
+}  // namespace kestrel::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace kestrel {
+namespace {
+HWY_EXPORT(executeOnTarget);
+}  // namespace
+}  // namespace kestrel
 
 using namespace kestrel;
 
@@ -28,40 +87,7 @@ void DemodulatePass::resolve(ResolveContext& rc) {
     }
 }
 
-namespace {
-
-// One channel of one row: (colour - emission) / albedo, sanitised. A, E: albedo, emission fed
-// (compile-time, so the loop is branch-free and vectorises).
-template <bool A, bool E>
-void demodulateRow(int w, const float* src, const float* __restrict a, const float* __restrict e,
-                   float* dst, float floor) {
-    // dst may be src (in place): each pixel is read before it is written, so no iteration
-    // depends on another.
-#pragma GCC ivdep
-    for (int x = 0; x < w; ++x) {
-        float v = px::sanitize(src[x]);
-        if constexpr (E) v -= px::sanitize(e[x]);
-        if constexpr (A) v /= px::demodulationAlbedo(a[x], floor);
-        dst[x] = px::sanitize(v);
-    }
-}
-
-}  // namespace
-
 void DemodulatePass::execute(FrameContext& ctx, PassIO& io) {
-    const ImageView& color = io.input("color");
-    const ImageView* albedo = io.hasInput("albedo") ? &io.input("albedo") : nullptr;
-    const ImageView* emission = io.hasInput("emission") ? &io.input("emission") : nullptr;
-    const ImageView& out = io.output("illumination");
-    // A zero floor would divide by zero on black albedo: keep the divisor a normal float.
-    const float floor = std::max(albedoFloor_, 1e-8f);
-    const int w = ctx.extent.width;
-    auto row = albedo ? (emission ? demodulateRow<true, true> : demodulateRow<true, false>)
-                      : (emission ? demodulateRow<false, true> : demodulateRow<false, false>);
-    ctx.parallelRows(ctx.extent.height, [&](int y0, int y1) {
-        for (int y = y0; y < y1; ++y)
-            for (int c = 0; c < 3; ++c)
-                row(w, color.row(c, y), albedo ? albedo->row(c, y) : nullptr,
-                    emission ? emission->row(c, y) : nullptr, out.row(c, y), floor);
-    });
+    HWY_DYNAMIC_DISPATCH(executeOnTarget)(ctx, io, albedoFloor_);
 }
+#endif  // HWY_ONCE

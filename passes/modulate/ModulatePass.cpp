@@ -1,34 +1,18 @@
+// Compiled once per SIMD target (hwy/foreach_target.h re-includes this file for each one):
+// the scalar loops auto-vectorise for each instruction set (and std::fma becomes one
+// instruction where there is FMA); the HWY_ONCE part at the end picks the running CPU's
+// best target.
 #include "ModulatePass.h"
 
 #include <kestrel/PixelMath.h>
 
-using namespace kestrel;
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "ModulatePass.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+#include <hwy/highway.h>
 
-PassDesc ModulatePass::describe() {
-    PassDesc d("Modulate",
-               "Re-applies albedo and emission: color = illumination * albedo (1 below "
-               "albedoFloor, as Demodulate) +"
-               " emission + base. Identity when nothing optional is bound.");
-    d.input("illumination", Format::Float3, "filtered demodulated illumination")
-        .optionalInput("albedo", Format::Float3, "surface albedo to multiply back")
-        .optionalInput("emission", Format::Float3, "emitted radiance to add back")
-        .optionalInput("base", Format::Float3, "radiance added on top (sums split components)")
-        .output("color", Format::Float3, "radiance")
-        .inPlaceOf("illumination")
-        .paramFloat("albedoFloor", 1e-3, 0.0, 1.0,
-                    "lower bound of the albedo factor (must match Demodulate's)");
-    return d;
-}
-
-ModulatePass::ModulatePass(const ParamValues& p) : albedoFloor_(p.getFloat("albedoFloor")) {}
-
-void ModulatePass::resolve(ResolveContext& rc) {
-    if (!rc.isBound("albedo") && !rc.isBound("emission") && !rc.isBound("base")) {
-        rc.forward("color", "illumination");
-        rc.note("no albedo, emission or base bound: color is the illumination itself");
-    }
-}
-
+HWY_BEFORE_NAMESPACE();
+namespace kestrel::HWY_NAMESPACE {
 namespace {
 
 // One channel of one row: illumination * albedo + emission + base, sanitised; products and
@@ -57,9 +41,8 @@ RowFn pick(bool b) {
     return b ? modulateRow<A, E, true> : modulateRow<A, E, false>;
 }
 
-}  // namespace
-
-void ModulatePass::execute(FrameContext& ctx, PassIO& io) {
+/// The pass for this target (its parameters as arguments).
+void executeOnTarget(FrameContext& ctx, PassIO& io, float albedoFloor_) {
     const ImageView& illum = io.input("illumination");
     const ImageView* albedo = io.hasInput("albedo") ? &io.input("albedo") : nullptr;
     const ImageView* emission = io.hasInput("emission") ? &io.input("emission") : nullptr;
@@ -77,3 +60,46 @@ void ModulatePass::execute(FrameContext& ctx, PassIO& io) {
                     out.row(c, y), floor);
     });
 }
+
+}  // namespace
+}  // namespace kestrel::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace kestrel {
+namespace {
+HWY_EXPORT(executeOnTarget);
+}  // namespace
+}  // namespace kestrel
+
+using namespace kestrel;
+
+PassDesc ModulatePass::describe() {
+    PassDesc d("Modulate",
+               "Re-applies albedo and emission: color = illumination * albedo (1 below "
+               "albedoFloor, as Demodulate) +"
+               " emission + base. Identity when nothing optional is bound.");
+    d.input("illumination", Format::Float3, "filtered demodulated illumination")
+        .optionalInput("albedo", Format::Float3, "surface albedo to multiply back")
+        .optionalInput("emission", Format::Float3, "emitted radiance to add back")
+        .optionalInput("base", Format::Float3, "radiance added on top (sums split components)")
+        .output("color", Format::Float3, "radiance")
+        .inPlaceOf("illumination")
+        .paramFloat("albedoFloor", 1e-3, 0.0, 1.0,
+                    "lower bound of the albedo factor (must match Demodulate's)");
+    return d;
+}
+
+ModulatePass::ModulatePass(const ParamValues& p) : albedoFloor_(p.getFloat("albedoFloor")) {}
+
+void ModulatePass::resolve(ResolveContext& rc) {
+    if (!rc.isBound("albedo") && !rc.isBound("emission") && !rc.isBound("base")) {
+        rc.forward("color", "illumination");
+        rc.note("no albedo, emission or base bound: color is the illumination itself");
+    }
+}
+
+void ModulatePass::execute(FrameContext& ctx, PassIO& io) {
+    HWY_DYNAMIC_DISPATCH(executeOnTarget)(ctx, io, albedoFloor_);
+}
+#endif  // HWY_ONCE

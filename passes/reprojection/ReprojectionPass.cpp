@@ -1,7 +1,9 @@
+// Compiled once per SIMD target (hwy/foreach_target.h re-includes this file for each one): the
+// whole execute, scalar loops included (they auto-vectorise for the target), lives in
+// kestrel::N_<TARGET>; the HWY_ONCE part at the end picks the running CPU's best target.
 #include "ReprojectionPass.h"
 
 #include <kestrel/PixelMath.h>
-#include <kestrel/SimdMath.h>
 
 #include <algorithm>
 #include <cmath>
@@ -13,65 +15,18 @@
 #include <type_traits>
 #include <vector>
 
-using namespace kestrel;
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "ReprojectionPass.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+// After foreach_target.h: once per target.
+#include <hwy/highway.h>
+#include <kestrel/SimdMath.h>
 
-PassDesc ReprojectionPass::describe() {
-    PassDesc d("Reprojection",
-               "Reprojects last frame's colour, moments and history length into this frame:"
-               " position from motion vectors, else world position + per-object and camera"
-               " matrices, else identity; 2x2 bilinear taps with depth/normal/id consistency"
-               " tests, 3x3 fallback, else disocclusion (historyLength 0). Optional Catmull-Rom"
-               " colour resampling for TAA histories.");
-    d.input("depth", Format::Float, "linear view depth")
-        .input("normal", Format::Float3, "world-space normal")
-        .optionalInput("objectId", Format::Int32, "object id (taps on another object are rejected)")
-        .optionalInput("motion", Format::Float2, "screen motion to the previous frame, pixels")
-        .optionalInput("position", Format::Float3, "world position (matrix reprojection)")
-        .historyInput("prevDepth", Format::Float, "last frame's depth")
-        .historyInput("prevNormal", Format::Float3, "last frame's normal")
-        .historyInput("prevObjectId", Format::Int32, "last frame's object id")
-        .historyInput("prevColor", Format::Float3, "last frame's colour history")
-        .historyInput("prevMoments", Format::Float2, "last frame's moments history")
-        .historyInput("prevHistoryLength", Format::Float, "last frame's history length")
-        .output("color", Format::Float3, "reprojected colour (0 where disoccluded)")
-        .output("moments", Format::Float2, "reprojected moments (0 where disoccluded)")
-        .output("historyLength", Format::Float,
-                "reprojected history length, 0 where disoccluded or without valid history; when"
-                " prevHistoryLength is not fed, 1 where the reprojection succeeded")
-        .output("resampleBlur", Format::Float,
-                "how much resampling the history blurs it, in [0, 1]: 2 (fx (1 - fx) + fy (1 - "
-                "fy)) of the reprojected position's fractions fx, fy between pixel centres (0 on "
-                "a centre, 1 midway between four), 1 on the 3x3 fallback, 0 where disoccluded "
-                "(TAA weights the history down by it, Karis 2014)")
-        .paramEnum("filter", "bilinear", {"bilinear", "catmullrom"},
-                   "colour resampling: bilinear (SVGF) or Catmull-Rom 4x4 (sharp, for TAA)")
-        .paramFloat("depthThreshold", 10.0, 0.0, 1e6,
-                    "max |z - z_prev| / (fwidth(z) + 0.01) of a consistent tap")
-        .paramFloat("normalThreshold", 16.0, 0.0, 1e6,
-                    "max |n - n_prev| / (fwidth(n) + 0.01) of a consistent tap");
-    return d;
-}
-
-ReprojectionPass::ReprojectionPass(const ParamValues& p)
-    : catmullRom_(p.getString("filter") == "catmullrom"),
-      depthThreshold_(p.getFloat("depthThreshold")),
-      normalThreshold_(p.getFloat("normalThreshold")) {}
-
-void ReprojectionPass::resolve(ResolveContext& rc) {
-    if (!rc.isBound("prevColor")) rc.setAbsent("color", "prevColor is not connected");
-    if (!rc.isBound("prevMoments")) rc.setAbsent("moments", "prevMoments is not connected");
-    if (rc.isBound("motion")) {
-        rc.note("reprojecting with motion vectors");
-        // World positions serve only the matrix path: not read, so the loader skips them.
-        if (rc.isBound("position")) rc.ignoreInput("position", "motion vectors are given");
-    } else if (rc.isBound("position"))
-        rc.note("reprojecting with world positions and matrices");
-    else
-        rc.note("no motion and no position: identity reprojection (static camera assumed)");
-}
-
+HWY_BEFORE_NAMESPACE();
+namespace kestrel::HWY_NAMESPACE {
 namespace {
 
+namespace hn = hwy::HWY_NAMESPACE;
 /// Per-object transforms of the matrix path: current world -> previous pixel (and previous
 /// camera, for the expected previous depth). GAMES202: Screen_{i-1} = P V M_{i-1} M_i^-1 World_i.
 struct ObjectTransforms {
@@ -329,7 +284,12 @@ PixelOut reprojectPixel(const Sources& S, const PixelRef& P) {
 // multiply-add is std::fma there and MulAdd here), with masked selects where the scalar code
 // skips a tap, so results are bit-identical to reprojectPixel
 // (tests/passes/reprojection, 0 ulp) and independent of how rows are split among threads.
-namespace hn = hwy::HWY_NAMESPACE;
+//
+// On the targets without an FMA instruction (SSE4, the baseline) MulAdd rounds the product
+// first, so the kernel would differ from reprojectPixel by rounding, and a rounding can flip a
+// consistency test at its threshold (a whole tap in or out). There every pixel takes
+// reprojectPixel instead (slower, and still bit-identical): kTapKernel.
+constexpr bool kTapKernel = HWY_NATIVE_FMA;
 using simd::DF;
 using simd::DI;
 using simd::MF;
@@ -534,9 +494,9 @@ inline int nextFlag(const uint8_t* flags, int from, int end) {
 }
 thread_local Scratch tScratch;
 
-}  // namespace
-
-void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
+/// The pass for this target (the `filter` and threshold parameters as arguments).
+void reproject(FrameContext& ctx, PassIO& io, bool catmullRom_, float depthThreshold_,
+               float normalThreshold_) {
     const int w = ctx.extent.width, h = ctx.extent.height;
     const ImageView* outC = io.hasOutput("color") ? &io.output("color") : nullptr;
     const ImageView* outM = io.hasOutput("moments") ? &io.output("moments") : nullptr;
@@ -666,8 +626,8 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
                              outH != nullptr};
             // The row in tiles of kTile pixels (the last one takes the remainder): each stage's
             // slice of the row scratch then stays in the L1 cache from one stage to the next.
-            // Rows narrower than a vector are left to reprojectPixel.
-            const bool vectors = w >= int(hn::Lanes(DF()));
+            // Rows narrower than a vector are left to reprojectPixel (all rows without FMA).
+            const bool vectors = kTapKernel && w >= int(hn::Lanes(DF()));
             for (int a = 0, b = 0; a < w; a = b) {
                 b = w - a < 2 * kTile ? w : a + kTile;
                 rowDerivatives(g, u, d, w, a, b, rInvZ, rInvN, rn0, rn1, rn2);
@@ -783,7 +743,79 @@ void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
                 oh[x] = o.h;
                 if (ob) ob[x] = o.blur;
             }
-
         }
     });
 }
+
+}  // namespace
+}  // namespace kestrel::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace kestrel {
+namespace {
+HWY_EXPORT(reproject);
+}  // namespace
+}  // namespace kestrel
+
+using namespace kestrel;
+
+PassDesc ReprojectionPass::describe() {
+    PassDesc d("Reprojection",
+               "Reprojects last frame's colour, moments and history length into this frame:"
+               " position from motion vectors, else world position + per-object and camera"
+               " matrices, else identity; 2x2 bilinear taps with depth/normal/id consistency"
+               " tests, 3x3 fallback, else disocclusion (historyLength 0). Optional Catmull-Rom"
+               " colour resampling for TAA histories.");
+    d.input("depth", Format::Float, "linear view depth")
+        .input("normal", Format::Float3, "world-space normal")
+        .optionalInput("objectId", Format::Int32, "object id (taps on another object are rejected)")
+        .optionalInput("motion", Format::Float2, "screen motion to the previous frame, pixels")
+        .optionalInput("position", Format::Float3, "world position (matrix reprojection)")
+        .historyInput("prevDepth", Format::Float, "last frame's depth")
+        .historyInput("prevNormal", Format::Float3, "last frame's normal")
+        .historyInput("prevObjectId", Format::Int32, "last frame's object id")
+        .historyInput("prevColor", Format::Float3, "last frame's colour history")
+        .historyInput("prevMoments", Format::Float2, "last frame's moments history")
+        .historyInput("prevHistoryLength", Format::Float, "last frame's history length")
+        .output("color", Format::Float3, "reprojected colour (0 where disoccluded)")
+        .output("moments", Format::Float2, "reprojected moments (0 where disoccluded)")
+        .output("historyLength", Format::Float,
+                "reprojected history length, 0 where disoccluded or without valid history; when"
+                " prevHistoryLength is not fed, 1 where the reprojection succeeded")
+        .output("resampleBlur", Format::Float,
+                "how much resampling the history blurs it, in [0, 1]: 2 (fx (1 - fx) + fy (1 - "
+                "fy)) of the reprojected position's fractions fx, fy between pixel centres (0 on "
+                "a centre, 1 midway between four), 1 on the 3x3 fallback, 0 where disoccluded "
+                "(TAA weights the history down by it, Karis 2014)")
+        .paramEnum("filter", "bilinear", {"bilinear", "catmullrom"},
+                   "colour resampling: bilinear (SVGF) or Catmull-Rom 4x4 (sharp, for TAA)")
+        .paramFloat("depthThreshold", 10.0, 0.0, 1e6,
+                    "max |z - z_prev| / (fwidth(z) + 0.01) of a consistent tap")
+        .paramFloat("normalThreshold", 16.0, 0.0, 1e6,
+                    "max |n - n_prev| / (fwidth(n) + 0.01) of a consistent tap");
+    return d;
+}
+
+ReprojectionPass::ReprojectionPass(const ParamValues& p)
+    : catmullRom_(p.getString("filter") == "catmullrom"),
+      depthThreshold_(p.getFloat("depthThreshold")),
+      normalThreshold_(p.getFloat("normalThreshold")) {}
+
+void ReprojectionPass::resolve(ResolveContext& rc) {
+    if (!rc.isBound("prevColor")) rc.setAbsent("color", "prevColor is not connected");
+    if (!rc.isBound("prevMoments")) rc.setAbsent("moments", "prevMoments is not connected");
+    if (rc.isBound("motion")) {
+        rc.note("reprojecting with motion vectors");
+        // World positions serve only the matrix path: not read, so the loader skips them.
+        if (rc.isBound("position")) rc.ignoreInput("position", "motion vectors are given");
+    } else if (rc.isBound("position"))
+        rc.note("reprojecting with world positions and matrices");
+    else
+        rc.note("no motion and no position: identity reprojection (static camera assumed)");
+}
+
+void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
+    HWY_DYNAMIC_DISPATCH(reproject)(ctx, io, catmullRom_, depthThreshold_, normalThreshold_);
+}
+#endif  // HWY_ONCE

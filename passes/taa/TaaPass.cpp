@@ -1,3 +1,7 @@
+// Compiled once per SIMD target (hwy/foreach_target.h re-includes this file for each one):
+// the scalar loops auto-vectorise for each instruction set (and std::fma becomes one
+// instruction where there is FMA); the HWY_ONCE part at the end picks the running CPU's
+// best target.
 #include "TaaPass.h"
 
 #include <algorithm>
@@ -6,8 +10,13 @@
 #include <memory>
 #include <vector>
 
-namespace kestrel::passes {
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "TaaPass.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+#include <hwy/highway.h>
 
+HWY_BEFORE_NAMESPACE();
+namespace kestrel::passes::HWY_NAMESPACE {
 namespace {
 
 constexpr float kMaxValue = 1e18f;  // keeps 3x3 sums of squares finite
@@ -210,59 +219,9 @@ void borderPixel(int x, int w, int ya, int yb, int y, const RowIo& io, const Par
 // Per-thread scratch: three YCoCg rows (ring), reused across chunks and frames.
 thread_local std::vector<float> tYcc;
 
-}  // namespace
-
-PassDesc TaaPass::describe() {
-    PassDesc d("TAA",
-               "Temporal anti-aliasing: blends the reprojected previous output, clipped to the "
-               "current 3x3 neighbourhood in YCoCg, with the current colour");
-    d.input("color", Format::Float3, "current frame colour")
-        .optionalInput("history", Format::Float3,
-                       "previous TAA output reprojected to this frame (Catmull-Rom resampled)")
-        .optionalInput("historyLength", Format::Float,
-                       "reprojection validity: 0 where disoccluded (history dropped there)")
-        .output("color", Format::Float3, "anti-aliased colour (feed back through a history edge)")
-        .optionalInput("resampleBlur", Format::Float,
-                       "how much resampling blurred the history, in [0, 1] (Reprojection's "
-                       "resampleBlur): the current frame's weight rises towards blurAlpha with it")
-        .paramFloat("alpha", 0.1, 0.0, 1.0, "weight of the current frame in the blend")
-        .paramFloat("blurAlpha", 1.0, 0.0, 1.0,
-                    "weight of the current frame where the history was resampled midway between "
-                    "pixels (resampleBlur 1)")
-        .paramFloat("gamma", 1.0, 0.0, 100.0,
-                    "neighbourhood box half-width in standard deviations (variance clipping)")
-        .paramEnum("mode", "clip", {"clip", "clamp"},
-                   "clip: move the history towards the mean onto the box; clamp: per channel")
-        .paramBool("onlyAntiAliased", false,
-                   "leave TAA out (pass the colour through) unless the source states the render "
-                   "is anti-aliased (the scene fact antiAliased): on a point-sampled render "
-                   "judged against a point-sampled reference the history has no detail to add")
-        .paramBool("antiFlicker", true,
-                   "inverse-luminance blend weights (Karis 2014): damps flicker of bright pixels");
-    return d;
-}
-
-TaaPass::TaaPass(const ParamValues& params)
-    : alpha_(params.getFloat("alpha")),
-      gamma_(params.getFloat("gamma")),
-      clip_(params.getString("mode") == "clip"),
-      antiFlicker_(params.getBool("antiFlicker")),
-      blurAlpha_(params.getFloat("blurAlpha")),
-      onlyAntiAliased_(params.getBool("onlyAntiAliased")) {}
-
-void TaaPass::resolve(ResolveContext& rc) {
-    if (onlyAntiAliased_ && rc.fact("antiAliased") != "true") {
-        rc.forward("color", "color");
-        rc.note("point-sampled render: TAA left out (onlyAntiAliased)");
-        return;
-    }
-    if (!rc.isBound("history")) {
-        rc.forward("color", "color");
-        rc.note("no history bound: TAA passes the current colour through");
-    }
-}
-
-void TaaPass::execute(FrameContext& ctx, PassIO& io) {
+/// The pass for this target (its parameters as arguments).
+void executeOnTarget(FrameContext& ctx, PassIO& io, float alpha_, float gamma_, bool clip_,
+                     bool antiFlicker_, float blurAlpha_) {
     const ImageView& cur = io.input("color");
     const ImageView& out = io.output("color");
     const int w = cur.width(), h = cur.height();
@@ -334,4 +293,69 @@ void TaaPass::execute(FrameContext& ctx, PassIO& io) {
     });
 }
 
+}  // namespace
+}  // namespace kestrel::passes::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace kestrel::passes {
+namespace {
+HWY_EXPORT(executeOnTarget);
+}  // namespace
+
+PassDesc TaaPass::describe() {
+    PassDesc d("TAA",
+               "Temporal anti-aliasing: blends the reprojected previous output, clipped to the "
+               "current 3x3 neighbourhood in YCoCg, with the current colour");
+    d.input("color", Format::Float3, "current frame colour")
+        .optionalInput("history", Format::Float3,
+                       "previous TAA output reprojected to this frame (Catmull-Rom resampled)")
+        .optionalInput("historyLength", Format::Float,
+                       "reprojection validity: 0 where disoccluded (history dropped there)")
+        .output("color", Format::Float3, "anti-aliased colour (feed back through a history edge)")
+        .optionalInput("resampleBlur", Format::Float,
+                       "how much resampling blurred the history, in [0, 1] (Reprojection's "
+                       "resampleBlur): the current frame's weight rises towards blurAlpha with it")
+        .paramFloat("alpha", 0.1, 0.0, 1.0, "weight of the current frame in the blend")
+        .paramFloat("blurAlpha", 1.0, 0.0, 1.0,
+                    "weight of the current frame where the history was resampled midway between "
+                    "pixels (resampleBlur 1)")
+        .paramFloat("gamma", 1.0, 0.0, 100.0,
+                    "neighbourhood box half-width in standard deviations (variance clipping)")
+        .paramEnum("mode", "clip", {"clip", "clamp"},
+                   "clip: move the history towards the mean onto the box; clamp: per channel")
+        .paramBool("onlyAntiAliased", false,
+                   "leave TAA out (pass the colour through) unless the source states the render "
+                   "is anti-aliased (the scene fact antiAliased): on a point-sampled render "
+                   "judged against a point-sampled reference the history has no detail to add")
+        .paramBool("antiFlicker", true,
+                   "inverse-luminance blend weights (Karis 2014): damps flicker of bright pixels");
+    return d;
+}
+
+TaaPass::TaaPass(const ParamValues& params)
+    : alpha_(params.getFloat("alpha")),
+      gamma_(params.getFloat("gamma")),
+      clip_(params.getString("mode") == "clip"),
+      antiFlicker_(params.getBool("antiFlicker")),
+      blurAlpha_(params.getFloat("blurAlpha")),
+      onlyAntiAliased_(params.getBool("onlyAntiAliased")) {}
+
+void TaaPass::resolve(ResolveContext& rc) {
+    if (onlyAntiAliased_ && rc.fact("antiAliased") != "true") {
+        rc.forward("color", "color");
+        rc.note("point-sampled render: TAA left out (onlyAntiAliased)");
+        return;
+    }
+    if (!rc.isBound("history")) {
+        rc.forward("color", "color");
+        rc.note("no history bound: TAA passes the current colour through");
+    }
+}
+
+void TaaPass::execute(FrameContext& ctx, PassIO& io) {
+    HWY_DYNAMIC_DISPATCH(executeOnTarget)(ctx, io, alpha_, gamma_, clip_, antiFlicker_, blurAlpha_);
+}
+
 }  // namespace kestrel::passes
+#endif  // HWY_ONCE

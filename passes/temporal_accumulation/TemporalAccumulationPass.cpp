@@ -1,3 +1,7 @@
+// Compiled once per SIMD target (hwy/foreach_target.h re-includes this file for each one):
+// the scalar loops auto-vectorise for each instruction set (and std::fma becomes one
+// instruction where there is FMA); the HWY_ONCE part at the end picks the running CPU's
+// best target.
 #include "TemporalAccumulationPass.h"
 
 #include <kestrel/PixelMath.h>
@@ -8,40 +12,13 @@
 #include <type_traits>
 #include <vector>
 
-using namespace kestrel;
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "TemporalAccumulationPass.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+#include <hwy/highway.h>
 
-PassDesc TemporalAccumulationPass::describe() {
-    PassDesc d("TemporalAccumulation",
-               "SVGF temporal filter: blends the illumination and its luminance moments with the"
-               " reprojected history (alpha = max(alpha, 1/historyLength)); outputs the temporal"
-               " variance. Fireflies are clamped before they enter the history.");
-    d.input("color", Format::Float3, "current (demodulated) illumination")
-        .optionalInput("prevColor", Format::Float3, "reprojected history illumination")
-        .optionalInput("prevMoments", Format::Float2, "reprojected history moments (l, l^2)")
-        .optionalInput("prevHistoryLength", Format::Float,
-                       "reprojected history length; 0 (or unbound) means no history")
-        .output("color", Format::Float3, "accumulated illumination")
-        .inPlaceOf("prevColor")
-        .output("moments", Format::Float2, "accumulated luminance moments (l, l^2)")
-        .output("historyLength", Format::Float,
-                "min(maxHistoryLength, prev + 1), 1 without history")
-        .output("variance", Format::Float, "temporal luminance variance max(0, m2 - m1^2)")
-        .inPlaceOf("prevHistoryLength")
-        .paramFloat("alpha", 0.2, 0.0, 1.0, "minimum blend weight of the current colour")
-        .paramFloat("momentsAlpha", 0.2, 0.0, 1.0, "minimum blend weight of the current moments")
-        .paramFloat("maxHistoryLength", 32.0, 1.0, 1e6, "cap of the history length")
-        .paramFloat("fireflySigma", 3.0, 0.0, 1e6,
-                    "firefly clamp: a sample brighter than mean + k*stddev of its 8 neighbours AND"
-                    " of its own history is scaled down to that bound (k = this; 0 = off)");
-    return d;
-}
-
-TemporalAccumulationPass::TemporalAccumulationPass(const ParamValues& p)
-    : alpha_(p.getFloat("alpha")),
-      momentsAlpha_(p.getFloat("momentsAlpha")),
-      maxHistory_(p.getFloat("maxHistoryLength")),
-      fireflySigma_(p.getFloat("fireflySigma")) {}
-
+HWY_BEFORE_NAMESPACE();
+namespace kestrel::HWY_NAMESPACE {
 namespace {
 
 // Floating-point evaluation. The plugin is compiled with -ffp-contract=off and every fused
@@ -176,9 +153,9 @@ void borderPixel(int w, int x, const Params& p, const Row& r) {
 // Per-thread scratch: three luminance rows (ring), neutral input rows and output sinks.
 thread_local std::vector<float> tScratch;
 
-}  // namespace
-
-void TemporalAccumulationPass::execute(FrameContext& ctx, PassIO& io) {
+/// The pass for this target (its parameters as arguments).
+void executeOnTarget(FrameContext& ctx, PassIO& io, float alpha_, float momentsAlpha_,
+                     float maxHistory_, float fireflySigma_) {
     const int w = ctx.extent.width, h = ctx.extent.height;
     const ImageView& color = io.input("color");
     const bool hasHist = io.hasInput("prevHistoryLength");
@@ -251,3 +228,54 @@ void TemporalAccumulationPass::execute(FrameContext& ctx, PassIO& io) {
         }
     });
 }
+
+}  // namespace
+}  // namespace kestrel::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace kestrel {
+namespace {
+HWY_EXPORT(executeOnTarget);
+}  // namespace
+}  // namespace kestrel
+
+using namespace kestrel;
+
+PassDesc TemporalAccumulationPass::describe() {
+    PassDesc d("TemporalAccumulation",
+               "SVGF temporal filter: blends the illumination and its luminance moments with the"
+               " reprojected history (alpha = max(alpha, 1/historyLength)); outputs the temporal"
+               " variance. Fireflies are clamped before they enter the history.");
+    d.input("color", Format::Float3, "current (demodulated) illumination")
+        .optionalInput("prevColor", Format::Float3, "reprojected history illumination")
+        .optionalInput("prevMoments", Format::Float2, "reprojected history moments (l, l^2)")
+        .optionalInput("prevHistoryLength", Format::Float,
+                       "reprojected history length; 0 (or unbound) means no history")
+        .output("color", Format::Float3, "accumulated illumination")
+        .inPlaceOf("prevColor")
+        .output("moments", Format::Float2, "accumulated luminance moments (l, l^2)")
+        .output("historyLength", Format::Float,
+                "min(maxHistoryLength, prev + 1), 1 without history")
+        .output("variance", Format::Float, "temporal luminance variance max(0, m2 - m1^2)")
+        .inPlaceOf("prevHistoryLength")
+        .paramFloat("alpha", 0.2, 0.0, 1.0, "minimum blend weight of the current colour")
+        .paramFloat("momentsAlpha", 0.2, 0.0, 1.0, "minimum blend weight of the current moments")
+        .paramFloat("maxHistoryLength", 32.0, 1.0, 1e6, "cap of the history length")
+        .paramFloat("fireflySigma", 3.0, 0.0, 1e6,
+                    "firefly clamp: a sample brighter than mean + k*stddev of its 8 neighbours AND"
+                    " of its own history is scaled down to that bound (k = this; 0 = off)");
+    return d;
+}
+
+TemporalAccumulationPass::TemporalAccumulationPass(const ParamValues& p)
+    : alpha_(p.getFloat("alpha")),
+      momentsAlpha_(p.getFloat("momentsAlpha")),
+      maxHistory_(p.getFloat("maxHistoryLength")),
+      fireflySigma_(p.getFloat("fireflySigma")) {}
+
+void TemporalAccumulationPass::execute(FrameContext& ctx, PassIO& io) {
+    HWY_DYNAMIC_DISPATCH(executeOnTarget)
+    (ctx, io, alpha_, momentsAlpha_, maxHistory_, fireflySigma_);
+}
+#endif  // HWY_ONCE

@@ -1,48 +1,38 @@
+// Compiled once per SIMD target (hwy/foreach_target.h re-includes this file for each one): the
+// fast path lives in kestrel::N_<TARGET>; the HWY_ONCE part at the end picks the running CPU's
+// best target.
 #include "VarianceEstimationPass.h"
 
 #include <kestrel/PixelMath.h>
 #include <kestrel/Scratch.h>
-#include <kestrel/SimdMath.h>
 
 #include <vector>
 
 #include "VarianceReference.h"
 
-using namespace kestrel;
+#ifndef KESTREL_VARIANCE_INPUTS_
+#define KESTREL_VARIANCE_INPUTS_
+namespace {
+constexpr int kRadius = 3;  // 7x7 (SVGF section 4.2)
 
-PassDesc VarianceEstimationPass::describe() {
-    PassDesc d("VarianceEstimation",
-               "Spatial variance estimate where the history is short: 7x7 cross-bilateral moments"
-               " (depth, normal, luminance weights), variance boosted by 4 / historyLength; colour"
-               " filtered with the same weights. Elsewhere colour and variance pass through.");
-    d.input("color", Format::Float3, "temporally accumulated illumination")
-        .input("moments", Format::Float2, "accumulated luminance moments (l, l^2)")
-        .input("historyLength", Format::Float, "history length per pixel")
-        .input("variance", Format::Float, "temporal variance")
-        .input("depth", Format::Float, "linear view depth")
-        .input("normal", Format::Float3, "world-space normal")
-        .optionalInput("objectId", Format::Int32, "object id: taps on another object get weight 0")
-        .output("color", Format::Float3, "illumination (filtered where the history is short)")
-        .output("variance", Format::Float, "luminance variance")
-        .paramFloat("sigmaZ", 1.0, 0.0, 1e6, "depth weight tolerance in units of the depth slope")
-        .paramFloat("sigmaN", 128.0, 0.0, 1e4, "normal weight exponent")
-        .paramFloat("sigmaL", 10.0, 1e-6, 1e6,
-                    "luminance weight: exp(-|l_p - l_q| / sigmaL), un-normalised (Falcor phiColor)")
-        .paramFloat("minHistoryLength", 4.0, 0.0, 1e6,
-                    "history length below which the spatial estimate is used")
-        .paramBool("exact", false,
-                   "run the plain scalar path (libm exp/pow, no SIMD) to measure what the fast"
-                   " path's approximations cost in error; several times slower");
-    return d;
-}
+struct Inputs {
+    int w, h;
+    const kestrel::ImageView *color, *moments, *hist, *var, *depth, *normal;
+    const int32_t* ids;
+    float sigmaZ, sigmaN, invSigmaL;
+};
+}  // namespace
+#endif
 
-VarianceEstimationPass::VarianceEstimationPass(const ParamValues& p)
-    : sigmaZ_(p.getFloat("sigmaZ")),
-      sigmaN_(p.getFloat("sigmaN")),
-      sigmaL_(p.getFloat("sigmaL")),
-      minHist_(p.getFloat("minHistoryLength")),
-      exact_(p.getBool("exact")) {}
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "VarianceEstimationPass.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+// After foreach_target.h: once per target.
+#include <hwy/highway.h>
+#include <kestrel/SimdMath.h>
 
+HWY_BEFORE_NAMESPACE();
+namespace kestrel::HWY_NAMESPACE {
 namespace {
 
 namespace hn = hwy::HWY_NAMESPACE;
@@ -51,15 +41,6 @@ using simd::DI;
 using simd::MF;
 using simd::VF;
 using simd::VI;
-
-constexpr int kRadius = 3;  // 7x7 (SVGF section 4.2)
-
-struct Inputs {
-    int w, h;
-    const ImageView *color, *moments, *hist, *var, *depth, *normal;
-    const int32_t* ids;
-    float sigmaZ, sigmaN, invSigmaL;
-};
 
 /// The spatial estimate of one pixel, plain scalar code: used where a vector block would read
 /// outside the image (the first and last columns, the row's tail).
@@ -222,45 +203,12 @@ void estimateBlock(const Inputs& in, float* const* P, int base, int x0, int y, V
     }
 }
 
-}  // namespace
-
-void VarianceEstimationPass::execute(FrameContext& ctx, PassIO& io) {
+/// The fast path (everything but `exact`) for this target.
+void estimate(FrameContext& ctx, const Inputs& in, const ImageView& outC, const ImageView* outV,
+              float minHist) {
     const DF d;
     const int n = int(hn::Lanes(d));
-    Inputs in{ctx.extent.width,
-              ctx.extent.height,
-              &io.input("color"),
-              &io.input("moments"),
-              &io.input("historyLength"),
-              &io.input("variance"),
-              &io.input("depth"),
-              &io.input("normal"),
-              io.hasInput("objectId") ? io.input("objectId").ints() : nullptr,
-              sigmaZ_,
-              sigmaN_,
-              1.f / sigmaL_};
-    const ImageView& outC = io.output("color");
-    const ImageView* outV = io.hasOutput("variance") ? &io.output("variance") : nullptr;
     const int w = in.w;
-    const float minHist = minHist_;
-    if (exact_) {
-        const reference::VarianceInputs ref{
-            in.color,
-            in.moments,
-            in.hist,
-            in.var,
-            in.depth,
-            in.normal,
-            io.hasInput("objectId") ? &io.input("objectId") : nullptr,
-            sigmaZ_,
-            sigmaN_,
-            sigmaL_,
-            minHist_};
-        ctx.parallelRows(
-            in.h, [&](int y0, int y1) { reference::varianceEstimation(ref, outC, outV, y0, y1); });
-        return;
-    }
-
     // Bands of rows, each with private scratch for its prepared rows (ScratchPool). The rows are
     // split into blocks of one vector (the vector path's pixels x = 3 + k n .. 3 + (k + 1) n);
     // only the columns of blocks holding a pixel with a short history are prepared, which in
@@ -361,3 +309,86 @@ void VarianceEstimationPass::execute(FrameContext& ctx, PassIO& io) {
         },
         1);
 }
+
+}  // namespace
+}  // namespace kestrel::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace kestrel {
+namespace {
+HWY_EXPORT(estimate);
+}  // namespace
+}  // namespace kestrel
+
+using namespace kestrel;
+
+PassDesc VarianceEstimationPass::describe() {
+    PassDesc d("VarianceEstimation",
+               "Spatial variance estimate where the history is short: 7x7 cross-bilateral moments"
+               " (depth, normal, luminance weights), variance boosted by 4 / historyLength; colour"
+               " filtered with the same weights. Elsewhere colour and variance pass through.");
+    d.input("color", Format::Float3, "temporally accumulated illumination")
+        .input("moments", Format::Float2, "accumulated luminance moments (l, l^2)")
+        .input("historyLength", Format::Float, "history length per pixel")
+        .input("variance", Format::Float, "temporal variance")
+        .input("depth", Format::Float, "linear view depth")
+        .input("normal", Format::Float3, "world-space normal")
+        .optionalInput("objectId", Format::Int32, "object id: taps on another object get weight 0")
+        .output("color", Format::Float3, "illumination (filtered where the history is short)")
+        .output("variance", Format::Float, "luminance variance")
+        .paramFloat("sigmaZ", 1.0, 0.0, 1e6, "depth weight tolerance in units of the depth slope")
+        .paramFloat("sigmaN", 128.0, 0.0, 1e4, "normal weight exponent")
+        .paramFloat("sigmaL", 10.0, 1e-6, 1e6,
+                    "luminance weight: exp(-|l_p - l_q| / sigmaL), un-normalised (Falcor phiColor)")
+        .paramFloat("minHistoryLength", 4.0, 0.0, 1e6,
+                    "history length below which the spatial estimate is used")
+        .paramBool("exact", false,
+                   "run the plain scalar path (libm exp/pow, no SIMD) to measure what the fast"
+                   " path's approximations cost in error; several times slower");
+    return d;
+}
+
+VarianceEstimationPass::VarianceEstimationPass(const ParamValues& p)
+    : sigmaZ_(p.getFloat("sigmaZ")),
+      sigmaN_(p.getFloat("sigmaN")),
+      sigmaL_(p.getFloat("sigmaL")),
+      minHist_(p.getFloat("minHistoryLength")),
+      exact_(p.getBool("exact")) {}
+
+void VarianceEstimationPass::execute(FrameContext& ctx, PassIO& io) {
+    Inputs in{ctx.extent.width,
+              ctx.extent.height,
+              &io.input("color"),
+              &io.input("moments"),
+              &io.input("historyLength"),
+              &io.input("variance"),
+              &io.input("depth"),
+              &io.input("normal"),
+              io.hasInput("objectId") ? io.input("objectId").ints() : nullptr,
+              sigmaZ_,
+              sigmaN_,
+              1.f / sigmaL_};
+    const ImageView& outC = io.output("color");
+    const ImageView* outV = io.hasOutput("variance") ? &io.output("variance") : nullptr;
+    if (exact_) {
+        const reference::VarianceInputs ref{
+            in.color,
+            in.moments,
+            in.hist,
+            in.var,
+            in.depth,
+            in.normal,
+            io.hasInput("objectId") ? &io.input("objectId") : nullptr,
+            sigmaZ_,
+            sigmaN_,
+            sigmaL_,
+            minHist_};
+        ctx.parallelRows(
+            in.h, [&](int y0, int y1) { reference::varianceEstimation(ref, outC, outV, y0, y1); });
+        return;
+    }
+
+    HWY_DYNAMIC_DISPATCH(estimate)(ctx, in, outC, outV, minHist_);
+}
+#endif  // HWY_ONCE

@@ -1,27 +1,34 @@
-#pragma once
-// Vector forms of PixelMath's helpers, for kernels written with Google Highway (static dispatch:
-// the build's -march chooses the widest instruction set, AVX-512 or AVX2 here, SSE2 anywhere).
-// Each function evaluates the same formula as its scalar namesake in PixelMath.h. The vector
-// forms spell out their fused multiply-adds; in the scalar ones GCC decides (it contracts a * b + c
-// by default in C++, even with -std=c++20, unlike ISO C), so results may differ from the scalar
-// ones by a few ulp, never more. A kernel that must match a scalar reference bit for bit builds
-// both without contraction (-ffp-contract=off) and writes MulAdd where the scalar code writes
-// std::fma (Reprojection does).
+// Per-target header (Highway's "-inl.h" convention, no #pragma once): vector forms of
+// PixelMath's helpers, for kernels written with Google Highway and compiled once per instruction
+// set by hwy/foreach_target.h (run-time dispatch: SSE4, AVX2, AVX-512, and the baseline; see
+// docs/benchmarks.md). A pass .cpp includes it after foreach_target.h, so each target's copy
+// lands in that target's namespace (kestrel::N_AVX2::simd, ...) and inlines into the kernels
+// of the same target, which call it as simd::...
 //
-// Header-only; a pass that includes it links hwy::hwy (the framework itself does not).
+// Each function evaluates the same formula as its scalar namesake in PixelMath.h. The vector
+// forms spell out their fused multiply-adds (fused on AVX2 and AVX-512; SSE4 and the baseline
+// have no FMA instruction, where Highway's MulAdd rounds the product first); in the scalar ones
+// GCC decides (it contracts a * b + c by default in C++, even with -std=c++20, unlike ISO C), so
+// results may differ from the scalar ones by a few ulp, never more. A kernel that must match a
+// scalar reference bit for bit builds both without contraction (-ffp-contract=off) and writes
+// MulAdd where the scalar code writes std::fma (Reprojection does, on the FMA targets).
+//
+// A pass that includes it links hwy::hwy (the framework itself does not).
 
-// Highway 1.0.3 (Debian 12) tests an undefined macro when it decides whether AVX3_DL (Ice Lake
-// and later: VNNI, VBMI2, ...) is attainable, so a -march=native build on such a CPU picks AVX3_DL
-// as its static target and then refuses it ("best baseline should be included in dynamic
-// targets"). Opting in, as its documentation allows, makes the two agree.
-#ifndef HWY_WANT_AVX3_DL
-#define HWY_WANT_AVX3_DL 1
+// Toggled include guard: included once per target by foreach_target.h.
+#if defined(KESTREL_SIMD_MATH_INL_H_) == defined(HWY_TARGET_TOGGLE)
+#ifdef KESTREL_SIMD_MATH_INL_H_
+#undef KESTREL_SIMD_MATH_INL_H_
+#else
+#define KESTREL_SIMD_MATH_INL_H_
 #endif
+
 #include <hwy/highway.h>
 
 #include "kestrel/PixelMath.h"
 
-namespace kestrel::simd {
+HWY_BEFORE_NAMESPACE();
+namespace kestrel::HWY_NAMESPACE::simd {
 
 namespace hn = hwy::HWY_NAMESPACE;
 using DF = hn::ScalableTag<float>;
@@ -37,7 +44,7 @@ using MF = hn::Mask<DF>;
 constexpr bool kMaskedLoadsCannotFault =
     HWY_ARCH_X86 && HWY_TARGET <= HWY_AVX3 && !HWY_MEM_OPS_MIGHT_FAULT;
 
-/// Lanes per vector of the build's target.
+/// Lanes per vector of this target.
 inline size_t lanes() {
     return hn::Lanes(DF());
 }
@@ -167,4 +174,7 @@ inline VF minAbsDiff(VF prev, VF cur, VF next, bool hasPrev, bool hasNext) {
     return hn::IfThenElse(hn::Le(hn::Abs(b), hn::Abs(f)), b, f);
 }
 
-}  // namespace kestrel::simd
+}  // namespace kestrel::HWY_NAMESPACE::simd
+HWY_AFTER_NAMESPACE();
+
+#endif  // KESTREL_SIMD_MATH_INL_H_

@@ -1,16 +1,25 @@
-// SimdMath's vector helpers against their scalar namesakes in PixelMath.h, on the build's
-// static Highway target (AVX-512 takes its own fastExp2 path: vscalefps).
+// SimdMath's vector helpers against their scalar namesakes in PixelMath.h, on every SIMD target
+// the build compiles and this CPU runs (AVX-512 takes its own fastExp2 path: vscalefps), and the
+// run-time dispatch itself: each target's function is the one called when dispatch is limited
+// to that target.
 #include <gtest/gtest.h>
-#include <kestrel/SimdMath.h>
+#include <kestrel/PixelMath.h>
 
 #include <cmath>
-#include <cstring>
+#include <cstdio>
 #include <vector>
 
-using namespace kestrel;
-namespace hn = hwy::HWY_NAMESPACE;
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "simd_math_test.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+#include <hwy/highway.h>
+#include <kestrel/SimdMath.h>
 
+HWY_BEFORE_NAMESPACE();
+namespace kestrel::HWY_NAMESPACE {
 namespace {
+
+namespace hn = hwy::HWY_NAMESPACE;
 
 /// simd::fastExp2 of every value, a vector at a time.
 std::vector<float> vectorExp2(const std::vector<float>& xs) {
@@ -24,17 +33,43 @@ std::vector<float> vectorExp2(const std::vector<float>& xs) {
     return out;
 }
 
-}  // namespace
+/// This copy's target and vector width.
+int64_t compiledTarget() {
+    return HWY_TARGET;
+}
+size_t lanes() {
+    return simd::lanes();
+}
 
-TEST(SimdMath, FastExp2MatchesTheScalarForm) {
-    // The scalar form's reduction and polynomial; the vector form fuses the multiply-adds, so
-    // it is held to exp2 with the stated bound and to the scalar form within a few ulp.
+}  // namespace
+}  // namespace kestrel::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+#include "HwyTargets.h"
+
+namespace kestrel {
+namespace {
+HWY_EXPORT(vectorExp2);
+HWY_EXPORT(compiledTarget);
+HWY_EXPORT(lanes);
+
+class SimdMath : public test::EveryTarget {};
+
+TEST_P(SimdMath, DispatchCallsTheChosenTargetsCode) {
+    EXPECT_EQ(HWY_DYNAMIC_DISPATCH(compiledTarget)(), GetParam());
+}
+
+TEST_P(SimdMath, FastExp2MatchesTheScalarForm) {
+    // The scalar form's reduction and polynomial; the vector form fuses the multiply-adds (on
+    // the FMA targets), so it is held to exp2 with the stated bound and to the scalar form
+    // within a few ulp.
     std::vector<float> xs;
     for (float x = -130.f; x <= 130.f; x += 0.00731f) xs.push_back(x);
     for (float x : {-126.5f, -126.49f, -126.51f, -127.f, -149.f, -200.f, -1e4f, -1e30f, 0.f, -0.5f,
                     0.5f, 126.f, 126.5f, 1e30f})
         xs.push_back(x);
-    const std::vector<float> v = vectorExp2(xs);
+    const std::vector<float> v = HWY_DYNAMIC_DISPATCH(vectorExp2)(xs);
     double worst = 0;
     for (size_t i = 0; i < xs.size(); ++i) {
         const float x = xs[i], s = px::fastExp2(x);
@@ -49,7 +84,13 @@ TEST(SimdMath, FastExp2MatchesTheScalarForm) {
         }
         EXPECT_NEAR(v[i], s, 4e-7f * s + 1e-45f) << x;
     }
-    EXPECT_EQ(vectorExp2({126.5f, 1e30f})[1], std::exp2(126.f));
-    std::printf("simd::fastExp2 (%zu lanes): worst relative error %.2g on [-126, 126]\n",
-                hn::Lanes(simd::DF()), worst);
+    EXPECT_EQ(HWY_DYNAMIC_DISPATCH(vectorExp2)({126.5f, 1e30f})[1], std::exp2(126.f));
+    std::printf("simd::fastExp2 on %s (%zu lanes): worst relative error %.2g on [-126, 126]\n",
+                hwy::TargetName(GetParam()), HWY_DYNAMIC_DISPATCH(lanes)(), worst);
 }
+
+KESTREL_FOR_EVERY_TARGET(SimdMath);
+
+}  // namespace
+}  // namespace kestrel
+#endif  // HWY_ONCE

@@ -9,10 +9,16 @@
 
 #include "../SvgfTestImages.h"
 #include "ATrousPass.h"
+#include "HwyTargets.h"
 
 using namespace kestrel;
 using namespace svgftest;
 using kestrel::testing::PassHarness;
+
+// The tests that compare the vector kernels with the scalar reference (or with themselves on
+// clean and dirty inputs) run once per compiled SIMD target this CPU supports.
+class ATrousEveryTarget : public kestrel::test::EveryTarget {};
+KESTREL_FOR_EVERY_TARGET(ATrousEveryTarget);
 
 namespace {
 
@@ -196,7 +202,7 @@ TEST(ATrous, NoLeakAcrossDepthNormalOrIdEdges) {
     EXPECT_GT(maxLeft(runATrous(ramp, {})), 1.f);
 }
 
-TEST(ATrous, NonFiniteInputsGiveFiniteOutputs) {
+TEST_P(ATrousEveryTarget, NonFiniteInputsGiveFiniteOutputs) {
     const int w = 12, h = 9;
     Scene s{grey(w, h, [](int x, int y) { return hash01(x, y); }),
             scalar(w, h, [](int x, int y) { return hash01(x, y, 1); }),
@@ -294,19 +300,19 @@ void expectATrousEquivalent(int w, int h, int step, int seed, bool extreme, int 
 }
 }  // namespace
 
-TEST(ATrous, VectorisedMatchesScalarReferenceOnRandomInputs) {
+TEST_P(ATrousEveryTarget, VectorisedMatchesScalarReferenceOnRandomInputs) {
     // 157 columns: vector blocks, row-wise borders and ragged tails for every step.
     for (int step : {1, 2, 4, 8, 16}) expectATrousEquivalent(157, 41, step, step, false, 1);
 }
 
-TEST(ATrous, VectorisedMatchesScalarReferenceForOtherNormalExponents) {
+TEST_P(ATrousEveryTarget, VectorisedMatchesScalarReferenceForOtherNormalExponents) {
     // sigma_n 128 has a kernel of its own (seven squarings); a whole exponent takes powInt, a
     // fractional one fastLog2/fastExp2, and 0 drops the normal weight.
     for (float sigmaN : {0.f, 3.f, 10.5f, 64.f})
         for (int step : {1, 4}) expectATrousEquivalent(157, 41, step, step + 5, false, 1, sigmaN);
 }
 
-TEST(ATrous, BandedFilteringMatchesReferenceAcrossBandSeams) {
+TEST_P(ATrousEveryTarget, BandedFilteringMatchesReferenceAcrossBandSeams) {
     // 150 rows are filtered in three bands of 64 whose halos overlap.
     expectATrousEquivalent(157, 150, 16, 77, false, 2);
     expectATrousEquivalent(157, 150, 1, 78, false, 2);
@@ -332,7 +338,7 @@ TEST(ATrous, ScratchScalesWithTheBandNotTheFrame) {
     EXPECT_LT(ScratchPool::bytes(), fullFrameSet * 6 / 10);
 }
 
-TEST(ATrous, VectorisedMatchesScalarReferenceOnExtremeInputs) {
+TEST_P(ATrousEveryTarget, VectorisedMatchesScalarReferenceOnExtremeInputs) {
     for (int step : {1, 4, 16}) expectATrousEquivalent(157, 41, step, 40 + step, true, 2);
 }
 
@@ -354,7 +360,7 @@ struct DirtyKind {
 };
 }  // namespace
 
-TEST(ATrous, ReadingInPlaceAndFromSanitisedCopiesAgree) {
+TEST_P(ATrousEveryTarget, ReadingInPlaceAndFromSanitisedCopiesAgree) {
     const int w = 157, h = 150;
     RandomGBuffer g = randomGBuffer(w, h, 21);
     Image var = scalar(w, h, [](int x, int y) { return 0.01f + hash01(x, y, 24); });
@@ -400,7 +406,7 @@ TEST(ATrous, ReadingInPlaceAndFromSanitisedCopiesAgree) {
 // The same with the variance bound but its output not wanted (svgf.json's last iteration): the
 // variance still weighs the luminance term, so it is still checked; with sigma_n = 0 (normals
 // unused) and on an image narrower than a vector.
-TEST(ATrous, ReadingInPlaceAgreesWithoutVarianceOutputWithoutNormalsAndWhenNarrow) {
+TEST_P(ATrousEveryTarget, ReadingInPlaceAgreesWithoutVarianceOutputWithoutNormalsAndWhenNarrow) {
     const float nan = std::numeric_limits<float>::quiet_NaN();
     for (const int w : {157, 7}) {
         const int h = 150;

@@ -11,6 +11,7 @@
 
 #include "ClampedAccumulationPass.h"
 #include "ClampedAccumulationReference.h"
+#include "HwyTargets.h"
 #include "kestrel/testing/PassHarness.h"
 
 using namespace kestrel;
@@ -118,17 +119,21 @@ void expectEquivalentAll(const Inputs& in, const std::string& what) {
 
 }  // namespace
 
-TEST(ClampedAccumulationEquivalence, RandomInputs) {
+// Once per compiled SIMD target this CPU supports (the pass's loops are compiled per target).
+class ClampedAccumulationEquivalence : public kestrel::test::EveryTarget {};
+KESTREL_FOR_EVERY_TARGET(ClampedAccumulationEquivalence);
+
+TEST_P(ClampedAccumulationEquivalence, RandomInputs) {
     expectEquivalentAll(randomInputs(97, 61, 1, 0.f), "random");
     expectEquivalentAll(randomInputs(80, 24, 2, 0.f), "random 80x24");
 }
 
-TEST(ClampedAccumulationEquivalence, ExtremeInputs) {
+TEST_P(ClampedAccumulationEquivalence, ExtremeInputs) {
     expectEquivalentAll(randomInputs(53, 37, 3, 0.05f), "extremes 5%");
     expectEquivalentAll(randomInputs(41, 29, 4, 0.5f), "extremes 50%");
 }
 
-TEST(ClampedAccumulationEquivalence, ZerosAndDenormals) {
+TEST_P(ClampedAccumulationEquivalence, ZerosAndDenormals) {
     Inputs in = randomInputs(33, 17, 5, 0.f);
     in.cur.fill(0.f);
     expectEquivalentAll(in, "zero colour");
@@ -137,7 +142,7 @@ TEST(ClampedAccumulationEquivalence, ZerosAndDenormals) {
     expectEquivalentAll(in, "denormals");
 }
 
-TEST(ClampedAccumulationEquivalence, TinyImages) {
+TEST_P(ClampedAccumulationEquivalence, TinyImages) {
     for (auto [w, h] : {std::pair{1, 1}, {1, 5}, {7, 1}, {2, 2}, {3, 3}, {2, 9}, {9, 2}})
         expectEquivalentAll(randomInputs(w, h, 6, 0.1f),
                             std::to_string(w) + "x" + std::to_string(h));

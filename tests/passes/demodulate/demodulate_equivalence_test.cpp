@@ -8,6 +8,7 @@
 
 #include "DemodulatePass.h"
 #include "DemodulateReference.h"
+#include "HwyTargets.h"
 #include "ModulationTestInputs.h"
 #include "kestrel/testing/PassHarness.h"
 
@@ -53,16 +54,20 @@ void expectEquivalent(int w, int h, unsigned seed, float extremes) {
 
 }  // namespace
 
-TEST(DemodulateEquivalence, RandomInputs) {
+// Once per compiled SIMD target this CPU supports (the pass's loops are compiled per target).
+class DemodulateEquivalence : public kestrel::test::EveryTarget {};
+KESTREL_FOR_EVERY_TARGET(DemodulateEquivalence);
+
+TEST_P(DemodulateEquivalence, RandomInputs) {
     expectEquivalent(97, 61, 1, 0.f);
     expectEquivalent(64, 8, 2, 0.f);
 }
 
-TEST(DemodulateEquivalence, ExtremeInputs) {
+TEST_P(DemodulateEquivalence, ExtremeInputs) {
     expectEquivalent(53, 37, 3, 0.1f);
     expectEquivalent(41, 29, 4, 0.6f);
 }
 
-TEST(DemodulateEquivalence, TinyImages) {
+TEST_P(DemodulateEquivalence, TinyImages) {
     for (auto [w, h] : {std::pair{1, 1}, {1, 5}, {7, 1}, {3, 3}}) expectEquivalent(w, h, 5, 0.2f);
 }

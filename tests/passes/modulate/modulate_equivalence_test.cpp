@@ -7,6 +7,7 @@
 #include <string>
 
 #include "../demodulate/ModulationTestInputs.h"
+#include "HwyTargets.h"
 #include "ModulatePass.h"
 #include "ModulateReference.h"
 #include "kestrel/testing/PassHarness.h"
@@ -55,16 +56,20 @@ void expectEquivalent(int w, int h, unsigned seed, float extremes) {
 
 }  // namespace
 
-TEST(ModulateEquivalence, RandomInputs) {
+// Once per compiled SIMD target this CPU supports (the pass's loops are compiled per target).
+class ModulateEquivalence : public kestrel::test::EveryTarget {};
+KESTREL_FOR_EVERY_TARGET(ModulateEquivalence);
+
+TEST_P(ModulateEquivalence, RandomInputs) {
     expectEquivalent(97, 61, 1, 0.f);
     expectEquivalent(64, 8, 2, 0.f);
 }
 
-TEST(ModulateEquivalence, ExtremeInputs) {
+TEST_P(ModulateEquivalence, ExtremeInputs) {
     expectEquivalent(53, 37, 3, 0.1f);
     expectEquivalent(41, 29, 4, 0.6f);
 }
 
-TEST(ModulateEquivalence, TinyImages) {
+TEST_P(ModulateEquivalence, TinyImages) {
     for (auto [w, h] : {std::pair{1, 1}, {1, 5}, {7, 1}, {3, 3}}) expectEquivalent(w, h, 5, 0.2f);
 }

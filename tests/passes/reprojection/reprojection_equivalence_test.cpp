@@ -1,6 +1,8 @@
 // Equivalence of the optimised Reprojection pass with the plain scalar reference
 // (ReprojectionReference.h) on random and extreme inputs, every input combination and 1-3
-// threads. Tolerance: exact (0 ulp, bitwise identical floats including the sign of zero).
+// threads, on every compiled SIMD target this CPU supports (without FMA, SSE4 and the baseline,
+// the pass takes its per-pixel path everywhere). Tolerance: exact (0 ulp, bitwise identical
+// floats including the sign of zero).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -8,6 +10,7 @@
 #include <limits>
 #include <string>
 
+#include "HwyTargets.h"
 #include "ReprojectionPass.h"
 #include "ReprojectionReference.h"
 #include "ReprojectionScene.h"
@@ -158,14 +161,17 @@ void sprinkleExtremes(Frames& f, float fraction, int seed) {
 
 }  // namespace
 
-TEST(ReprojectionEquivalence, SceneWithMotionVectors) {
+class ReprojectionEquivalence : public kestrel::test::EveryTarget {};
+KESTREL_FOR_EVERY_TARGET(ReprojectionEquivalence);
+
+TEST_P(ReprojectionEquivalence, SceneWithMotionVectors) {
     for (int seed : {1, 2}) {
         const Frames f = reprojscene::makeFrames(97, 61, seed);
         expectEquivalentAll(f, {}, "scene seed " + std::to_string(seed));
     }
 }
 
-TEST(ReprojectionEquivalence, WideRowsInSeveralTiles) {
+TEST_P(ReprojectionEquivalence, WideRowsInSeveralTiles) {
     // The pass works through a row in tiles of 256 pixels, the last taking the remainder: 1100
     // columns make four tiles with derivatives, runs and vectors crossing tile boundaries.
     Frames f = reprojscene::makeFrames(1100, 9, 13);
@@ -173,12 +179,12 @@ TEST(ReprojectionEquivalence, WideRowsInSeveralTiles) {
     expectEquivalentAll(f, {}, "wide rows");
 }
 
-TEST(ReprojectionEquivalence, StaticAndFastScenes) {
+TEST_P(ReprojectionEquivalence, StaticAndFastScenes) {
     expectEquivalentAll(reprojscene::makeFrames(64, 40, 3, 0.f), {}, "static");
     expectEquivalentAll(reprojscene::makeFrames(64, 40, 4, 6.f), {}, "fast");
 }
 
-TEST(ReprojectionEquivalence, RandomMotionIncludingOffScreen) {
+TEST_P(ReprojectionEquivalence, RandomMotionIncludingOffScreen) {
     Frames f = reprojscene::makeFrames(53, 47, 5);
     for (int y = 0; y < 47; ++y)
         for (int x = 0; x < 53; ++x) {
@@ -194,7 +200,7 @@ TEST(ReprojectionEquivalence, RandomMotionIncludingOffScreen) {
     expectEquivalentAll(f, {}, "random motion");
 }
 
-TEST(ReprojectionEquivalence, ExtremeValues) {
+TEST_P(ReprojectionEquivalence, ExtremeValues) {
     for (float fraction : {0.02f, 0.2f}) {
         Frames f = reprojscene::makeFrames(61, 43, 6);
         sprinkleExtremes(f, fraction, int(fraction * 1000));
@@ -206,7 +212,7 @@ TEST(ReprojectionEquivalence, ExtremeValues) {
     }
 }
 
-TEST(ReprojectionEquivalence, AllZeroAndDenormalInputs) {
+TEST_P(ReprojectionEquivalence, AllZeroAndDenormalInputs) {
     Frames f = reprojscene::makeFrames(40, 24, 7);
     for (Image* im : {&f.prevColor, &f.prevMoments, &f.prevHistoryLength}) im->fill(0.f);
     expectEquivalentAll(f, {}, "zero history");
@@ -217,7 +223,7 @@ TEST(ReprojectionEquivalence, AllZeroAndDenormalInputs) {
     expectEquivalentAll(f, {}, "zero geometry");
 }
 
-TEST(ReprojectionEquivalence, MatrixAndIdentityPaths) {
+TEST_P(ReprojectionEquivalence, MatrixAndIdentityPaths) {
     Frames f = reprojscene::makeFrames(71, 45, 8);
     for (int y = 0; y < 45; ++y)
         for (int x = 0; x < 71; ++x) f.objectId.atInt(x, y) = f.objectId.atInt(x, y) % 6 - 1;
@@ -234,7 +240,7 @@ TEST(ReprojectionEquivalence, MatrixAndIdentityPaths) {
     expectEquivalentAll(f, id, "position without cameras");
 }
 
-TEST(ReprojectionEquivalence, InputCombinations) {
+TEST_P(ReprojectionEquivalence, InputCombinations) {
     const Frames f = reprojscene::makeFrames(45, 33, 9);
     for (int mask = 0; mask < 32; ++mask) {
         Binding b;
@@ -247,14 +253,14 @@ TEST(ReprojectionEquivalence, InputCombinations) {
     }
 }
 
-TEST(ReprojectionEquivalence, TinyImages) {
+TEST_P(ReprojectionEquivalence, TinyImages) {
     for (auto [w, h] : {std::pair{1, 1}, {1, 7}, {9, 1}, {2, 2}, {3, 5}, {17, 3}}) {
         Frames f = reprojscene::makeFrames(w, h, 10, 0.3f);
         expectEquivalentAll(f, {}, std::to_string(w) + "x" + std::to_string(h));
     }
 }
 
-TEST(ReprojectionEquivalence, Thresholds) {
+TEST_P(ReprojectionEquivalence, Thresholds) {
     const Frames f = reprojscene::makeFrames(50, 30, 11);
     for (auto [dz, dn] : {std::pair{0.0, 0.0}, {0.5, 0.1}, {1e6, 1e6}}) {
         auto h = PassHarness::make<ReprojectionPass>(

@@ -8,6 +8,7 @@
 #include <random>
 #include <string>
 
+#include "HwyTargets.h"
 #include "TaaPass.h"
 #include "TaaReference.h"
 #include "kestrel/testing/PassHarness.h"
@@ -126,17 +127,21 @@ void expectEquivalentAll(const Inputs& in, const std::string& what) {
 
 }  // namespace
 
-TEST(TaaEquivalence, RandomInputs) {
+// Once per compiled SIMD target this CPU supports (the pass's loops are compiled per target).
+class TaaEquivalence : public kestrel::test::EveryTarget {};
+KESTREL_FOR_EVERY_TARGET(TaaEquivalence);
+
+TEST_P(TaaEquivalence, RandomInputs) {
     expectEquivalentAll(randomInputs(97, 61, 1, 0.f), "random");
     expectEquivalentAll(randomInputs(64, 32, 2, 0.f), "random 64x32");
 }
 
-TEST(TaaEquivalence, ExtremeInputs) {
+TEST_P(TaaEquivalence, ExtremeInputs) {
     expectEquivalentAll(randomInputs(53, 37, 3, 0.05f), "extremes 5%");
     expectEquivalentAll(randomInputs(41, 29, 4, 0.5f), "extremes 50%");
 }
 
-TEST(TaaEquivalence, ZerosAndDenormals) {
+TEST_P(TaaEquivalence, ZerosAndDenormals) {
     Inputs in = randomInputs(33, 17, 5, 0.f);
     in.cur.fill(0.f);
     expectEquivalentAll(in, "zero colour");
@@ -145,7 +150,7 @@ TEST(TaaEquivalence, ZerosAndDenormals) {
     expectEquivalentAll(in, "denormals");
 }
 
-TEST(TaaEquivalence, TinyImages) {
+TEST_P(TaaEquivalence, TinyImages) {
     for (auto [w, h] : {std::pair{1, 1}, {1, 5}, {7, 1}, {2, 2}, {3, 3}, {2, 9}, {9, 2}})
         expectEquivalentAll(randomInputs(w, h, 6, 0.1f),
                             std::to_string(w) + "x" + std::to_string(h));

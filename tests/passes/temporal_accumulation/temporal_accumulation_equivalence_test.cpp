@@ -9,6 +9,7 @@
 #include <random>
 #include <string>
 
+#include "HwyTargets.h"
 #include "TemporalAccumulationPass.h"
 #include "TemporalAccumulationReference.h"
 #include "kestrel/testing/PassHarness.h"
@@ -119,17 +120,21 @@ void expectEquivalentAll(const Inputs& in, const std::string& what) {
 
 }  // namespace
 
-TEST(TemporalAccumulationEquivalence, RandomInputs) {
+// Once per compiled SIMD target this CPU supports (the pass's loops are compiled per target).
+class TemporalAccumulationEquivalence : public kestrel::test::EveryTarget {};
+KESTREL_FOR_EVERY_TARGET(TemporalAccumulationEquivalence);
+
+TEST_P(TemporalAccumulationEquivalence, RandomInputs) {
     expectEquivalentAll(randomInputs(97, 61, 1, 0.f), "random");
     expectEquivalentAll(randomInputs(64, 40, 2, 0.f), "random 64x40");
 }
 
-TEST(TemporalAccumulationEquivalence, ExtremeInputs) {
+TEST_P(TemporalAccumulationEquivalence, ExtremeInputs) {
     expectEquivalentAll(randomInputs(53, 37, 3, 0.05f), "extremes 5%");
     expectEquivalentAll(randomInputs(41, 29, 4, 0.5f), "extremes 50%");
 }
 
-TEST(TemporalAccumulationEquivalence, ZerosAndDenormals) {
+TEST_P(TemporalAccumulationEquivalence, ZerosAndDenormals) {
     Inputs in = randomInputs(33, 17, 5, 0.f);
     in.color.fill(0.f);
     expectEquivalentAll(in, "zero colour");
@@ -138,7 +143,7 @@ TEST(TemporalAccumulationEquivalence, ZerosAndDenormals) {
     expectEquivalentAll(in, "denormals");
 }
 
-TEST(TemporalAccumulationEquivalence, TinyImages) {
+TEST_P(TemporalAccumulationEquivalence, TinyImages) {
     for (auto [w, h] : {std::pair{1, 1}, {1, 5}, {7, 1}, {2, 2}, {3, 3}, {2, 9}, {9, 2}})
         expectEquivalentAll(randomInputs(w, h, 6, 0.1f),
                             std::to_string(w) + "x" + std::to_string(h));

@@ -4,11 +4,17 @@
 #include <cstdio>
 
 #include "../SvgfTestImages.h"
+#include "HwyTargets.h"
 #include "VarianceEstimationPass.h"
 
 using namespace kestrel;
 using namespace svgftest;
 using kestrel::testing::PassHarness;
+
+// The tests of the vector kernel (against the scalar reference, or against itself) run once per
+// compiled SIMD target this CPU supports.
+class VarianceEveryTarget : public kestrel::test::EveryTarget {};
+KESTREL_FOR_EVERY_TARGET(VarianceEveryTarget);
 
 namespace {
 struct In {
@@ -74,7 +80,7 @@ TEST(VarianceEstimation, NoLeakAcrossDepthEdge) {
     EXPECT_LT(leak, 1e-6f);  // measured 0: constant depth per side, slope 0, weight exactly 0
 }
 
-TEST(VarianceEstimation, NonFiniteInputsGiveFiniteOutputs) {
+TEST_P(VarianceEveryTarget, NonFiniteInputsGiveFiniteOutputs) {
     In in = uniform(6, 6, 0.5f, 1.f, 1.5f, 1.f);
     in.color.at(0, 1, 1) = NAN;
     in.moments.at(1, 2, 2) = INFINITY;
@@ -172,25 +178,25 @@ void expectEquivalent(const EqCase& e, int threads, double tol) {
 }
 }  // namespace
 
-TEST(VarianceEstimation, VectorisedMatchesScalarReferenceOnRandomInputs) {
+TEST_P(VarianceEveryTarget, VectorisedMatchesScalarReferenceOnRandomInputs) {
     // 77 columns: vector blocks, scalar borders and a ragged tail for 4-, 8- and 16-lane targets.
     expectEquivalent(equivalenceCase(77, 29, 1, false), 1, 1e-4);
     // 100 rows: four bands of 32 rows (prepared separately, with overlapping halos).
     expectEquivalent(equivalenceCase(77, 100, 4, false), 2, 1e-4);
 }
 
-TEST(VarianceEstimation, VectorisedMatchesScalarReferenceWhereFewPixelsAreShort) {
+TEST_P(VarianceEveryTarget, VectorisedMatchesScalarReferenceWhereFewPixelsAreShort) {
     // The steady state: only the blocks around short pixels are prepared (a preparation that
     // missed a tap's column would read another band's stale scratch and differ).
     expectEquivalent(equivalenceCase(301, 70, 5, false, true), 1, 1e-4);
     expectEquivalent(equivalenceCase(301, 70, 6, true, true), 2, 1e-4);
 }
 
-TEST(VarianceEstimation, VectorisedMatchesScalarReferenceOnExtremeInputs) {
+TEST_P(VarianceEveryTarget, VectorisedMatchesScalarReferenceOnExtremeInputs) {
     expectEquivalent(equivalenceCase(77, 29, 2, true), 2, 1e-4);
 }
 
-TEST(VarianceEstimation, SameOutputForOneAndTwoThreads) {
+TEST_P(VarianceEveryTarget, SameOutputForOneAndTwoThreads) {
     EqCase e = equivalenceCase(77, 29, 3, true);
     auto runWith = [&](int threads) {
         auto h = PassHarness::make<VarianceEstimationPass>(e.g.color.extent(), {}, threads);
