@@ -601,6 +601,12 @@ PassDesc ATrousPass::describe() {
         .paramFloat("sigmaL", 4.0, 0.0, 1e6, "luminance weight: tolerance in standard deviations")
         .paramFloat("sigmaColor", 0.6, 1e-6, 1e6,
                     "luminance tolerance (absolute) used when no variance is bound")
+        .paramInt("iteration", 0, 0, 1024,
+                  "this pass's index in its chain (0 first); with iterations, lets one "
+                  "parameter set how many of a chain's passes run")
+        .paramInt("iterations", 1024, 1, 1024,
+                  "how many iterations the chain runs (a group parameter): a pass with "
+                  "iteration >= iterations passes color and variance through and is left out")
         .paramBool("exact", false,
                    "run the plain scalar path (libm exp/pow, no SIMD) to measure what the fast"
                    " path's approximations cost in error; several times slower");
@@ -614,9 +620,14 @@ ATrousPass::ATrousPass(const ParamValues& p) {
     s_.sigmaL = p.getFloat("sigmaL");
     s_.sigmaColor = p.getFloat("sigmaColor");
     exact_ = p.getBool("exact");
+    skipped_ = p.getInt("iteration") >= p.getInt("iterations");
 }
 
 void ATrousPass::resolve(ResolveContext& rc) {
+    if (skipped_) {  // beyond the chain's iteration count: an identity, left out by the compiler
+        rc.forward("color", "color");
+        if (rc.isBound("variance")) rc.forward("variance", "variance");
+    }
     if (!rc.isBound("variance")) {
         rc.setAbsent("variance", "no variance input");
         rc.note("no variance input: luminance weight uses the fixed sigmaColor");

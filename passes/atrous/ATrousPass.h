@@ -18,4 +18,6 @@ public:
 private:
     Settings s_;
     bool exact_ = false;
+    bool skipped_ = false;  // iteration >= iterations: passes its input through
+
 };

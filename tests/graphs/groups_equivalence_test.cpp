@@ -8,6 +8,7 @@
 #include <scenegen/SceneGen.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -41,7 +42,9 @@ std::string instancePath(const std::string& flatName) {
 }
 
 /// Every parameter of a pass, declared defaults filled in: a group that writes a default out
-/// ("sigmaL": "$sigmaL" with 4.0) sets what the flat file left to the default.
+/// ("sigmaL": "$sigmaL" with 4.0) sets what the flat file left to the default. ATrous's
+/// iteration/iterations (which the chain sets and the flat files predate) are left out: they
+/// change nothing while iteration < iterations, and IterationsParameter tests the rest.
 json effectiveParams(const PassNode& p) {
     const PassType* t = testutil::builtPlugins().find(p.type);
     EXPECT_NE(t, nullptr) << p.type;
@@ -51,6 +54,11 @@ json effectiveParams(const PassNode& p) {
             all[d.name] = std::visit([](const auto& x) { return json(x); }, d.defaultValue);
     const json set = json::parse(p.paramsJson);
     for (const auto& [k, v] : set.items()) all[k] = v;
+    if (p.type == "ATrous") {
+        EXPECT_LT(all.value("iteration", 0), all.value("iterations", 0)) << p.name;
+        all.erase("iteration");
+        all.erase("iterations");
+    }
     return all;
 }
 
@@ -202,6 +210,73 @@ TEST(ShippedGroups, BitIdenticalOnBlenderSequences) {
         expectBitIdentical((dir / "noisy/frame_####.exr").string(), 1, 3);
     }
     if (!found) GTEST_SKIP() << "../shared/data/blender-street* not present (a user's clone)";
+}
+
+/// The flat svgf-notaa.json with A-Trous iterations `keep` and beyond cut out of every chain, the
+/// last kept iteration feeding what the cut ones fed: the chain the iterations parameter asks for,
+/// written out by hand.
+fs::path flatWithIterations(int keep) {
+    json g = json::parse(std::ifstream(flat("svgf-notaa.json")));
+    const std::regex iteration(R"(^(\w+)_atrous(\d)$)");
+    auto cut = [&](const std::string& pass) {
+        std::smatch m;
+        return std::regex_match(pass, m, iteration) && std::stoi(m[2]) >= keep;
+    };
+    auto passOf = [](const std::string& port) { return port.substr(0, port.find('.')); };
+    json passes = json::array();
+    for (const json& p : g["passes"])
+        if (!cut(p["name"])) passes.push_back(p);
+    g["passes"] = passes;
+    json edges = json::array();
+    for (json e : g["edges"]) {
+        if (e["to"].is_string() && cut(passOf(e["to"]))) continue;
+        const std::string from = e["from"];
+        if (cut(passOf(from))) {
+            const std::string chain = from.substr(0, from.find('_'));
+            e["from"] = chain + "_atrous" + std::to_string(keep - 1) + from.substr(from.find('.'));
+        }
+        edges.push_back(e);
+    }
+    g["edges"] = edges;
+    const fs::path file = fs::temp_directory_path() /
+                          ("kestrel-iterations-" + std::to_string(::getpid()) + ".json");
+    std::ofstream(file) << g.dump(1);
+    return file;
+}
+
+std::vector<std::string> livePasses(const fs::path& graph, const std::string& input) {
+    GraphDesc g = loadGraphFile(graph);
+    applyOverride(g, "input.path=" + json(input).dump());
+    testutil::markWriterInput(g);
+    CompileOptions copt;
+    copt.firstFrame = 1;
+    return compileGraph(g, testutil::builtPlugins(), copt)->executionOrder();
+}
+
+// One parameter sets a chain's A-Trous iteration count: svgf-fast.json (iterations 2) runs
+// exactly iterations 0 and 1 of its chain, bit-identical to the flat graph with 2-4 cut out.
+TEST(ShippedGroups, IterationsParameterRunsExactlyThatManyIterations) {
+    scenegen::SceneOptions o;
+    o.width = 64;
+    o.height = 48;
+    o.frames = 4;
+    o.referenceSpp = 1;
+    const std::string input = (scene("room", o) / "noisy/frame_####.exr").string();
+    const fs::path cutFlat = flatWithIterations(2);
+    const Outputs fast = run(shipped("svgf-fast.json"), input, 1, 4);
+    const Outputs expected = run(cutFlat, input, 1, 4);
+    const Outputs full = run(shipped("svgf-notaa.json"), input, 1, 4);
+    fs::remove(cutFlat);
+    ASSERT_TRUE(fast.error.empty()) << fast.error;
+    ASSERT_EQ(fast.frames.size(), expected.frames.size());
+    for (size_t i = 0; i < fast.frames.size(); ++i) {
+        EXPECT_EQ(fast.frames[i], expected.frames[i]) << "frame " << i + 1;
+        EXPECT_NE(fast.frames[i], full.frames[i]) << "frame " << i + 1;
+    }
+    const auto live = livePasses(shipped("svgf-fast.json"), input);
+    auto has = [&](const char* pass) { return std::count(live.begin(), live.end(), pass) > 0; };
+    EXPECT_TRUE(has("single.atrous0") && has("single.atrous1"));
+    EXPECT_FALSE(has("single.atrous2") || has("single.atrous3") || has("single.atrous4"));
 }
 
 }  // namespace
