@@ -9,7 +9,7 @@ bash scripts/setup.sh >/dev/null
 frames=${1:-6}
 kestrel=build/bin/kestrel
 work=${KESTREL_BENCH_DIR:-kestrel-out/bench-scenes}
-graphs=(svgf svgf-notaa games202-jbf games202-atrous)
+graphs=(svgf svgf-notaa svgf-fast games202-jbf games202-atrous)
 
 echo "commit $(git rev-parse --short HEAD 2>/dev/null || echo unknown); $(nproc) cores;" \
   "$(sed -n 's/^model name[^:]*: //p' /proc/cpuinfo | head -1); load $(cut -d' ' -f1-3 /proc/loadavg)"

@@ -57,8 +57,8 @@ std::vector<Setting> makeSettings(const BenchOptions& o) {
     std::vector<Setting> settings;
     std::vector<std::string> graphs = o.graphs;
     if (graphs.empty())
-        for (const char* name : {"svgf.json", "svgf-notaa.json", "svgf-split.json",
-                                 "games202-jbf.json", "games202-atrous.json"}) {
+        for (const char* name : {"svgf.json", "svgf-notaa.json", "svgf-fast.json",
+                                 "svgf-split.json", "games202-jbf.json", "games202-atrous.json"}) {
             fs::path p = shippedGraph(name);
             std::error_code ec;
             if (fs::exists(p, ec)) graphs.push_back(p.string());

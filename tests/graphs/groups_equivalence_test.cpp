@@ -238,8 +238,8 @@ fs::path flatWithIterations(int keep) {
         edges.push_back(e);
     }
     g["edges"] = edges;
-    const fs::path file = fs::temp_directory_path() /
-                          ("kestrel-iterations-" + std::to_string(::getpid()) + ".json");
+    const fs::path file =
+        fs::temp_directory_path() / ("kestrel-iterations-" + std::to_string(::getpid()) + ".json");
     std::ofstream(file) << g.dump(1);
     return file;
 }
