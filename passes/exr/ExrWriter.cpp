@@ -199,8 +199,8 @@ ExrWriter::ExrWriter(const ParamValues& p)
 void ExrWriter::resolve(ResolveContext& rc) {
     if (pixelType_ != "auto") return;
     half_ = rc.fact("colorPixelType") == "half";
-    rc.note(std::string("writes ") + (half_ ? "half" : "float") +
-            " pixels, as the source's colour (pixelType auto)");
+    // Float loses nothing and needs no word; half is said, since it rounds.
+    if (half_) rc.note("writes half pixels, as the source's colour is (pixelType auto)");
 }
 
 void ExrWriter::beginRun(const RunContext& rc) {

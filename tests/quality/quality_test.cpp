@@ -91,7 +91,7 @@ struct Case {
 
 std::vector<Case> allCases() {
     std::vector<Case> cases;
-    for (const char* graph : {"svgf.json", "svgf-notaa.json", "svgf-split.json",
+    for (const char* graph : {"svgf.json", "svgf-notaa.json", "svgf-fast.json", "svgf-split.json",
                               "games202-jbf.json", "games202-atrous.json"})
         for (const Scene& s : allScenes())
             if (std::string(graph) != "svgf-split.json" || s.split) cases.push_back({graph, s});
