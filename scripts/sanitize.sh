@@ -37,7 +37,13 @@ t1=$(date +%s)
 
 # halt_on_error: the first report fails the test. detect_leaks: LeakSanitizer needs ptrace-like
 # access that some containers deny; it is on unless KESTREL_ASAN_LEAKS=0.
-export ASAN_OPTIONS="halt_on_error=1:abort_on_error=1:detect_leaks=${KESTREL_ASAN_LEAKS:-1}:strict_string_checks=1:detect_stack_use_after_return=1:check_initialization_order=1"
+# intercept_tls_get_addr=0: LeakSanitizer's dynamic-TLS tracking misreads glibc >= 2.25's TLS
+# blocks when one happens to start at the old header's page offset (google/sanitizers#1322) and
+# its tracer then dies with SIGSEGV after a test has passed (seen on the plugins' thread_local
+# scratch: ExtremeInputs.AntiAliasedAlbedoWithZeroNanAndInf). Leaks are still checked; pointers
+# held only in a plugin's dynamic TLS are not roots (thread_local buffers are freed before the
+# check: the main thread's at exit, the workers' when the pool joins).
+export ASAN_OPTIONS="halt_on_error=1:abort_on_error=1:detect_leaks=${KESTREL_ASAN_LEAKS:-1}:intercept_tls_get_addr=0:strict_string_checks=1:detect_stack_use_after_return=1:check_initialization_order=1"
 export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
 # Tests excluded under the sanitizers, with the reason (none at present):
 exclude=""
