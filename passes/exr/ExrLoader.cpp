@@ -416,12 +416,14 @@ bool ExrLoader::colorStoredAsHalf(const ExrInput* first, int64_t frame) const {
     if (!color || color->absent) return false;
     const auto refs = color->channels();
     if (refs.empty()) return false;
+    std::map<std::string, std::unique_ptr<ExrInput>> opened;  // GAMES202: each role file once
     for (const auto& ref : refs) {
-        std::unique_ptr<ExrInput> other;  // GAMES202: the role's own file
         const ExrInput* in = first;
         if (!ref.file.empty() || !in) {
+            auto& other = opened[ref.file];
             try {
-                other = std::make_unique<ExrInput>(filePath(ref.file, frame), maxPixels_);
+                if (!other)
+                    other = std::make_unique<ExrInput>(filePath(ref.file, frame), maxPixels_);
             } catch (const Error&) {
                 return false;  // reported where the frame is read
             }

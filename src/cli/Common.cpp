@@ -133,6 +133,18 @@ void printGraphError(const GraphError& e, const GraphDesc* graph) {
     for (const auto& d : e.diagnostics()) std::cerr << "error: " << d.str() << "\n";
 }
 
+int exitTwoOnUsageError(const std::function<int()>& fn) {
+    try {
+        return fn();
+    } catch (const GraphError& e) {
+        printGraphError(e);
+        return 2;
+    } catch (const Error& e) {
+        std::cerr << "error: " << e.what() << "\n";
+        return 2;
+    }
+}
+
 std::string markSinkInput(GraphDesc& g, const Registry& reg, bool detach) {
     std::vector<std::string> sinks;
     for (const auto& p : g.passes)

@@ -1,15 +1,16 @@
 #pragma once
 // Shared by the CLI's subcommands: logging set-up, plugin loading, preparing a graph with the
 // user's --input/--output/--set, and printing diagnostics.
-#include <filesystem>
-#include <memory>
-#include <string>
-#include <vector>
-
 #include <kestrel/Compiler.h>
 #include <kestrel/Graph.h>
 #include <kestrel/Plugin.h>
 #include <kestrel/Registry.h>
+
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
 
 namespace kestrel::cli {
 
@@ -54,6 +55,10 @@ std::string markSinkInput(GraphDesc& graph, const Registry& registry, bool detac
 /// Prints every diagnostic of a GraphError on stderr, one per line. With the graph, a JSON path
 /// into a pass also names it as the user writes it in --set: "passes[1].params.alpha (taa.alpha)".
 void printGraphError(const GraphError& e, const GraphDesc* graph = nullptr);
+
+/// Runs `fn`; a GraphError or Error it throws (bad options, a graph that does not prepare) is
+/// printed, one line per finding, and gives exit code 2 (docs/errors.md).
+int exitTwoOnUsageError(const std::function<int()>& fn);
 
 /// Parses "1-100", "1-100x2", "3,4,10-20x2" into frame numbers (Error naming the text).
 std::vector<int64_t> parseFrameList(const std::string& text);

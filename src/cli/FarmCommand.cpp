@@ -130,19 +130,6 @@ int checkCommand(FarmArgs a) {
     return checkPlan(plan);
 }
 
-/// Usage errors (bad options, an unreadable plan, a graph that does not prepare) exit 2.
-int guarded(const std::function<int()>& fn) {
-    try {
-        return fn();
-    } catch (const GraphError& e) {
-        printGraphError(e);
-        return 2;
-    } catch (const Error& e) {
-        std::cerr << "error: " << e.what() << "\n";
-        return 2;
-    }
-}
-
 }  // namespace
 
 void addFarmCommand(CLI::App& app, Action& action) {
@@ -163,7 +150,7 @@ void addFarmCommand(CLI::App& app, Action& action) {
     plan->add_option("--out", planArgs->out, "Write the plan to this file (default: stdout)");
     plan->callback([&action, planArgs, plan] {
         planArgs->plan.extra = passThrough(plan);
-        action = [planArgs] { return guarded([&] { return planCommand(*planArgs); }); };
+        action = [planArgs] { return exitTwoOnUsageError([&] { return planCommand(*planArgs); }); };
     });
 
     auto checkArgs = std::make_shared<FarmArgs>();
@@ -174,7 +161,9 @@ void addFarmCommand(CLI::App& app, Action& action) {
     check->add_option("--plan", checkArgs->planFile, "A plan written with --format json");
     check->callback([&action, checkArgs, check] {
         checkArgs->plan.extra = passThrough(check);
-        action = [checkArgs] { return guarded([&] { return checkCommand(*checkArgs); }); };
+        action = [checkArgs] {
+            return exitTwoOnUsageError([&] { return checkCommand(*checkArgs); });
+        };
     });
 }
 

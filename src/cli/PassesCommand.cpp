@@ -119,16 +119,12 @@ void addPassesCommand(CLI::App& app, Action& action) {
         action = [json, graphs]() -> int {
             auto plugins = loadPlugins();
             std::vector<GroupInfo> groups;
-            try {
-                groups = groupsIn(graphs->empty() ? shippedGraph("svgf.json").parent_path()
-                                                  : std::filesystem::path(*graphs));
-            } catch (const GraphError& e) {
-                printGraphError(e);
-                return 2;
-            } catch (const Error& e) {
-                std::cerr << "error: " << e.what() << "\n";
-                return 2;
-            }
+            if (int rc = exitTwoOnUsageError([&] {
+                    groups = groupsIn(graphs->empty() ? shippedGraph("svgf.json").parent_path()
+                                                      : std::filesystem::path(*graphs));
+                    return 0;
+                }))
+                return rc;
             if (*json) {
                 // One array: pass types (with "type") first, then groups (with "group").
                 nlohmann::json all = nlohmann::json::array();

@@ -181,14 +181,19 @@ fs::path scene(const std::string& name, scenegen::SceneOptions opt) {
     return dir;
 }
 
-// The built-in room (point-sampled, one illumination: the single chain, no TAA).
-TEST(ShippedGroups, BitIdenticalOnTheBuiltInScene) {
+/// The built-in room, 64x48, 4 frames (point-sampled, one illumination: the single chain, no
+/// TAA), as the loader's input pattern.
+std::string builtInRoom() {
     scenegen::SceneOptions o;
     o.width = 64;
     o.height = 48;
     o.frames = 4;
     o.referenceSpp = 1;
-    expectBitIdentical((scene("room", o) / "noisy/frame_####.exr").string(), 1, 4);
+    return (scene("room", o) / "noisy/frame_####.exr").string();
+}
+
+TEST(ShippedGroups, BitIdenticalOnTheBuiltInScene) {
+    expectBitIdentical(builtInRoom(), 1, 4);
 }
 
 // The zoo street with a 1.5 px pixel filter: the diffuse/specular split, albedo averaging, TAA.
@@ -256,12 +261,7 @@ std::vector<std::string> livePasses(const fs::path& graph, const std::string& in
 // One parameter sets a chain's A-Trous iteration count: svgf-fast.json (iterations 2) runs
 // exactly iterations 0 and 1 of its chain, bit-identical to the flat graph with 2-4 cut out.
 TEST(ShippedGroups, IterationsParameterRunsExactlyThatManyIterations) {
-    scenegen::SceneOptions o;
-    o.width = 64;
-    o.height = 48;
-    o.frames = 4;
-    o.referenceSpp = 1;
-    const std::string input = (scene("room", o) / "noisy/frame_####.exr").string();
+    const std::string input = builtInRoom();
     const fs::path cutFlat = flatWithIterations(2);
     const Outputs fast = run(shipped("svgf-fast.json"), input, 1, 4);
     const Outputs expected = run(cutFlat, input, 1, 4);
