@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
@@ -760,6 +761,10 @@ HWY_EXPORT(reproject);
 
 using namespace kestrel;
 
+namespace {
+constexpr float kNoTest = std::numeric_limits<float>::infinity();
+}  // namespace
+
 PassDesc ReprojectionPass::describe() {
     PassDesc d("Reprojection",
                "Reprojects last frame's colour, moments and history length into this frame:"
@@ -793,14 +798,22 @@ PassDesc ReprojectionPass::describe() {
         .paramFloat("depthThreshold", 10.0, 0.0, 1e6,
                     "max |z - z_prev| / (fwidth(z) + 0.01) of a consistent tap")
         .paramFloat("normalThreshold", 16.0, 0.0, 1e6,
-                    "max |n - n_prev| / (fwidth(n) + 0.01) of a consistent tap");
+                    "max |n - n_prev| / (fwidth(n) + 0.01) of a consistent tap")
+        .paramBool("geometryTests", true,
+                   "the depth and normal tests (the object id and screen bounds are always "
+                   "tested); off for TAA histories on jittered G-buffers (a pixel filter wider "
+                   "than a pixel), where each frame's depth and normal are another sample of "
+                   "the footprint, the tests reject the edges TAA exists to accumulate, and "
+                   "TAA's neighbourhood clip rejects stale history instead (Karis 2014)");
     return d;
 }
 
 ReprojectionPass::ReprojectionPass(const ParamValues& p)
     : catmullRom_(p.getString("filter") == "catmullrom"),
-      depthThreshold_(p.getFloat("depthThreshold")),
-      normalThreshold_(p.getFloat("normalThreshold")) {}
+      // Without the geometry tests every tap passes them: an infinite threshold is passed by
+      // any finite distance (and a NaN normal still fails, as with the tests).
+      depthThreshold_(p.getBool("geometryTests") ? p.getFloat("depthThreshold") : kNoTest),
+      normalThreshold_(p.getBool("geometryTests") ? p.getFloat("normalThreshold") : kNoTest) {}
 
 void ReprojectionPass::resolve(ResolveContext& rc) {
     if (!rc.isBound("prevColor")) rc.setAbsent("color", "prevColor is not connected");

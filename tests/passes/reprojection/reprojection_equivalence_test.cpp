@@ -261,38 +261,49 @@ TEST_P(ReprojectionEquivalence, TinyImages) {
 }
 
 TEST_P(ReprojectionEquivalence, Thresholds) {
+    // Infinite thresholds: geometryTests off (TAA's history; also with Catmull-Rom), which the
+    // reference runs as tests no finite distance fails.
+    constexpr double kOff = std::numeric_limits<double>::infinity();
     const Frames f = reprojscene::makeFrames(50, 30, 11);
-    for (auto [dz, dn] : {std::pair{0.0, 0.0}, {0.5, 0.1}, {1e6, 1e6}}) {
-        auto h = PassHarness::make<ReprojectionPass>(
-            f.depth.extent(), {{"depthThreshold", dz}, {"normalThreshold", dn}}, 2);
-        h.bind("depth", f.depth);
-        h.bind("normal", f.normal);
-        h.bind("objectId", f.objectId);
-        h.bind("motion", f.motion);
-        h.bind("prevDepth", f.prevDepth);
-        h.bind("prevNormal", f.prevNormal);
-        h.bind("prevObjectId", f.prevObjectId);
-        h.bind("prevColor", f.prevColor);
-        h.bind("prevMoments", f.prevMoments);
-        h.bind("prevHistoryLength", f.prevHistoryLength);
-        h.run();
-        reprojref::Inputs in;
-        in.depth = &f.depth;
-        in.normal = &f.normal;
-        in.objectId = &f.objectId;
-        in.motion = &f.motion;
-        in.prevDepth = &f.prevDepth;
-        in.prevNormal = &f.prevNormal;
-        in.prevObjectId = &f.prevObjectId;
-        in.prevColor = &f.prevColor;
-        in.prevMoments = &f.prevMoments;
-        in.prevHistoryLength = &f.prevHistoryLength;
-        reprojref::Params p;
-        p.depthThreshold = float(dz);
-        p.normalThreshold = float(dn);
-        const auto ref = reprojref::reproject(in, p);
-        EXPECT_TRUE(sameBits(h.out("color"), ref.color)) << dz << " " << dn;
-        EXPECT_TRUE(sameBits(h.out("moments"), ref.moments)) << dz << " " << dn;
-        EXPECT_TRUE(sameBits(h.out("historyLength"), ref.historyLength)) << dz << " " << dn;
-    }
+    for (auto [dz, dn] : {std::pair{0.0, 0.0}, {0.5, 0.1}, {1e6, 1e6}, {kOff, kOff}})
+        for (bool catmullRom : {false, true}) {
+            std::map<std::string, ParamValue> params{
+                {"filter", catmullRom ? "catmullrom" : "bilinear"}};
+            if (dz == kOff)
+                params["geometryTests"] = false;
+            else
+                params.insert({{"depthThreshold", dz}, {"normalThreshold", dn}});
+            auto h = PassHarness::make<ReprojectionPass>(f.depth.extent(), params, 2);
+            h.bind("depth", f.depth);
+            h.bind("normal", f.normal);
+            h.bind("objectId", f.objectId);
+            h.bind("motion", f.motion);
+            h.bind("prevDepth", f.prevDepth);
+            h.bind("prevNormal", f.prevNormal);
+            h.bind("prevObjectId", f.prevObjectId);
+            h.bind("prevColor", f.prevColor);
+            h.bind("prevMoments", f.prevMoments);
+            h.bind("prevHistoryLength", f.prevHistoryLength);
+            h.run();
+            reprojref::Inputs in;
+            in.depth = &f.depth;
+            in.normal = &f.normal;
+            in.objectId = &f.objectId;
+            in.motion = &f.motion;
+            in.prevDepth = &f.prevDepth;
+            in.prevNormal = &f.prevNormal;
+            in.prevObjectId = &f.prevObjectId;
+            in.prevColor = &f.prevColor;
+            in.prevMoments = &f.prevMoments;
+            in.prevHistoryLength = &f.prevHistoryLength;
+            reprojref::Params p;
+            p.depthThreshold = float(dz);
+            p.normalThreshold = float(dn);
+            p.catmullRom = catmullRom;
+            const auto ref = reprojref::reproject(in, p);
+            EXPECT_TRUE(sameBits(h.out("color"), ref.color))
+                << dz << " " << dn << " " << catmullRom;
+            EXPECT_TRUE(sameBits(h.out("moments"), ref.moments)) << dz << " " << dn;
+            EXPECT_TRUE(sameBits(h.out("historyLength"), ref.historyLength)) << dz << " " << dn;
+        }
 }

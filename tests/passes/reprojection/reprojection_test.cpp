@@ -137,6 +137,35 @@ TEST(Reprojection, DisocclusionResetsHistoryLength) {
     EXPECT_EQ(h2.out("historyLength").at(0, 3, 2), 0.f);
 }
 
+TEST(Reprojection, WithoutGeometryTestsOnlyIdsAndScreenBoundsReject) {
+    // Last frame a jittered G-buffer saw another depth and normal (columns 3..7, rows 1..4)
+    // on the same object: with geometryTests off the history is kept there (TAA on anti-aliased
+    // renders); a tap on another object or off screen is still rejected.
+    Frames f;
+    for (int y = 1; y <= 4; ++y)
+        for (int x = 3; x <= 7; ++x) {
+            f.prevDepth.at(0, x, y) = 2.f;
+            f.prevNormal.at(0, x, y) = 1.f;
+            f.prevNormal.at(2, x, y) = 0.f;
+        }
+    f.prevIds.atInt(9, 5) = 7;
+    auto tested = make(f, true);
+    tested.run();
+    EXPECT_EQ(tested.out("historyLength").at(0, 3, 2), 0.f);  // the tests reject it
+    auto h = make(f, true, {{"geometryTests", false}});
+    h.run();
+    for (int y = 1; y <= 4; ++y)
+        for (int x = 1; x <= 5; ++x) {  // reads previous columns 3..7
+            SCOPED_TRACE(::testing::Message() << "x=" << x << " y=" << y);
+            EXPECT_NEAR(h.out("historyLength").at(0, x, y), 5.f, 1e-5f);
+            EXPECT_NEAR(h.out("color").at(0, x, y), float(x + 2 + 100 * y), 1e-3f);
+        }
+    EXPECT_EQ(h.out("historyLength").at(0, 9, 2), 0.f);  // came from off screen
+    // (7, 5) -> (9, 5), another object: the 2x2 tap and most of the 3x3 fallback are rejected,
+    // and the fallback's taps on object 3 are all that is averaged.
+    EXPECT_NEAR(h.out("color").at(0, 7, 5), (9.f + 400.f + 8.f + 400.f + 8.f + 500.f) / 3.f, 1e-3f);
+}
+
 TEST(Reprojection, HalfPixelMotionBlendsBilinearly) {
     Frames f;
     for (int y = 0; y < H; ++y)
@@ -161,9 +190,9 @@ TEST(Reprojection, ResampleBlurFollowsTheSubPixelOffset) {
     // resampleBlur = 2 (fx (1 - fx) + fy (1 - fy)): 0 on a pixel centre, 1 midway between four,
     // for both filters, in the tap kernel (interior) and the per-pixel path (border) alike.
     for (const char* filter : {"bilinear", "catmullrom"}) {
-        for (auto [mx, my, expected] : {std::tuple{2.f, 0.f, 0.f}, std::tuple{1.5f, 0.5f, 1.f},
-                                        std::tuple{2.25f, 0.f, 0.375f},
-                                        std::tuple{0.75f, -0.25f, 0.75f}}) {
+        for (auto [mx, my, expected] :
+             {std::tuple{2.f, 0.f, 0.f}, std::tuple{1.5f, 0.5f, 1.f},
+              std::tuple{2.25f, 0.f, 0.375f}, std::tuple{0.75f, -0.25f, 0.75f}}) {
             Frames f;
             for (int y = 0; y < H; ++y)
                 for (int x = 0; x < W; ++x) {
