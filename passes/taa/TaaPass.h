@@ -17,10 +17,17 @@
 //     Blender sample room: 33.4 dB with the history at full weight, 35.9 with blurAlpha 1,
 //     36.3 without TAA; anti-aliased renders gain from it too once their albedo is averaged
 //     over frames);
+//   - warmUp: historyLength is the pass's own age (its historyLength output fed back through
+//     the reprojection), and the current frame weighs at least 2 / (n + 1) in a history of n
+//     frames: an input that converges after a disocclusion (a denoiser's output) would
+//     otherwise keep its first, worst frames in the blend for long;
 //   - onlyAntiAliased leaves the pass out on point-sampled renders (the source's scene fact
 //     antiAliased is not "true"): there
 //     the reference is as sharp as each frame, and even the weighted history cost 0.03-0.35 dB
-//     and raised the temporal instability on six of seven point-sampled sequences.
+//     and raised the temporal instability on six of seven point-sampled sequences. On
+//     anti-aliased renders svgf.json's TAA reprojection runs without the depth/normal tests,
+//     which on a jittered G-buffer reject the edges TAA anti-aliases (Reprojection's
+//     geometryTests).
 #include <kestrel/Kestrel.h>
 
 namespace kestrel::passes {
@@ -38,6 +45,7 @@ private:
     bool clip_ = true;
     bool antiFlicker_ = true;
     float blurAlpha_ = 1.f;
+    bool warmUp_ = false;
     bool onlyAntiAliased_ = false;
 };
 

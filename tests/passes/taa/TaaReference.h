@@ -19,6 +19,7 @@ struct Params {
     float alpha = 0.1f, gamma = 1.f;
     bool clip = true, antiFlicker = true;
     float blurAlpha = 1.f;  ///< alpha where resampleBlur is 1
+    bool warmUp = false;    ///< len is TAA's own age: the current weight is >= 2 / (len + 2)
 };
 
 inline float sanitise(float v) {
@@ -26,11 +27,14 @@ inline float sanitise(float v) {
     return v == v ? std::clamp(v, -kMaxValue, kMaxValue) : 0.f;
 }
 
-/// history / historyLength / blur (resampleBlur): null when not bound. Returns the Float3 output.
+/// history / historyLength / blur (resampleBlur): null when not bound. Returns the Float3 output;
+/// age (if given, Float): the historyLength output, len + 1 (at most 255) where the history is
+/// used, else 1.
 inline Image taa(const Image& cur, const Image* hist, const Image* len, const Params& p,
-                 const Image* blur = nullptr) {
+                 const Image* blur = nullptr, Image* age = nullptr) {
     const int w = cur.width(), h = cur.height();
     Image out(w, h, Format::Float3);
+    if (age) *age = Image(w, h, Format::Float);
     auto ycc = [&](int x, int y, float v[3]) {
         const float r = sanitise(cur.at(0, x, y)), g = sanitise(cur.at(1, x, y)),
                     b = sanitise(cur.at(2, x, y));
@@ -43,6 +47,8 @@ inline Image taa(const Image& cur, const Image* hist, const Image* len, const Pa
             bool valid = hist && (!len || len->at(0, x, y) > 0.f);
             if (valid)
                 for (int ch = 0; ch < 3; ++ch) valid = valid && std::isfinite(hist->at(ch, x, y));
+            const float l = len ? len->at(0, x, y) : 1.f;
+            if (age) age->at(0, x, y) = valid ? std::min(l + 1.f, 255.f) : 1.f;
             if (!valid) {  // no history or disoccluded: exactly the current colour
                 for (int ch = 0; ch < 3; ++ch) out.at(ch, x, y) = sanitise(cur.at(ch, x, y));
                 continue;
@@ -92,7 +98,8 @@ inline Image taa(const Image& cur, const Image* hist, const Image* len, const Pa
             }
             float b = blur ? blur->at(0, x, y) : 0.f;
             b = b > 0.f ? std::min(b, 1.f) : 0.f;  // NaN counts as 0
-            const float alpha = std::fma(b, p.blurAlpha - p.alpha, p.alpha);
+            float alpha = std::fma(b, p.blurAlpha - p.alpha, p.alpha);
+            if (p.warmUp && len) alpha = std::max(alpha, 2.f / (std::max(l, 0.f) + 2.f));
             float wc = alpha, wh = 1.f - alpha;
             if (p.antiFlicker) {
                 wc /= 1.f + std::max(0.f, c[0]);

@@ -3,6 +3,7 @@
 // (0 ulp, bitwise identical floats including the sign of zero).
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <random>
@@ -54,15 +55,21 @@ Inputs randomInputs(int w, int h, unsigned seed, float extremeFraction) {
         }
     for (size_t i = 0; i < in.len.extent().pixels(); ++i) {
         const float r = u(rng);
-        in.len.channel(0)[i] = r < 0.1f ? 0.f : r < 0.12f ? -1.f : r < 0.13f ? NAN : 1.f;
+        // Validity flags, and ages as TAA's own fed-back historyLength brings them (warmUp).
+        in.len.channel(0)[i] = r < 0.1f    ? 0.f
+                               : r < 0.12f ? -1.f
+                               : r < 0.13f ? NAN
+                               : r < 0.14f ? INFINITY
+                               : r < 0.5f  ? 1.f
+                                           : 1.f + std::floor(300.f * u(rng) * u(rng));
         const float b = u(rng);  // resampleBlur: [0, 1], and what a user's wiring may bring
         in.blur.channel(0)[i] = b < 0.05f ? NAN : b < 0.1f ? -2.f : b < 0.15f ? 7.f : u(rng);
     }
     return in;
 }
 
-::testing::AssertionResult sameBits(const Image& a, const Image& b) {
-    for (int c = 0; c < 3; ++c)
+::testing::AssertionResult sameBits(const Image& a, const Image& b, int channels = 3) {
+    for (int c = 0; c < channels; ++c)
         for (int y = 0; y < a.height(); ++y)
             for (int x = 0; x < a.width(); ++x)
                 if (std::memcmp(&a.at(c, x, y), &b.at(c, x, y), sizeof(float)) != 0)
@@ -78,22 +85,29 @@ void expectEquivalent(const Inputs& in, bool withHist, bool withLen, const taare
                  " alpha " + std::to_string(p.alpha) + " gamma " + std::to_string(p.gamma) +
                  " clip " + std::to_string(p.clip) + " antiFlicker " +
                  std::to_string(p.antiFlicker) + " threads " + std::to_string(threads) + " blur " +
-                 std::to_string(withBlur) + " blurAlpha " + std::to_string(p.blurAlpha));
+                 std::to_string(withBlur) + " blurAlpha " + std::to_string(p.blurAlpha) +
+                 " warmUp " + std::to_string(p.warmUp));
     auto h = PassHarness::make<TaaPass>(in.cur.extent(),
                                         {{"alpha", double(p.alpha)},
                                          {"gamma", double(p.gamma)},
                                          {"mode", std::string(p.clip ? "clip" : "clamp")},
                                          {"antiFlicker", p.antiFlicker},
-                                         {"blurAlpha", double(p.blurAlpha)}},
+                                         {"blurAlpha", double(p.blurAlpha)},
+                                         {"warmUp", p.warmUp}},
                                         threads);
     h.bind("color", in.cur);
     if (withHist) h.bind("history", in.hist);
     if (withLen) h.bind("historyLength", in.len);
     if (withBlur) h.bind("resampleBlur", in.blur);
     h.run();
-    const Image ref = taaref::taa(in.cur, withHist ? &in.hist : nullptr,
-                                  withLen ? &in.len : nullptr, p, withBlur ? &in.blur : nullptr);
+    Image refAge;
+    const Image ref =
+        taaref::taa(in.cur, withHist ? &in.hist : nullptr, withLen ? &in.len : nullptr, p,
+                    withBlur ? &in.blur : nullptr, &refAge);
     EXPECT_TRUE(sameBits(h.out("color"), ref));
+    if (withHist) {
+        EXPECT_TRUE(sameBits(h.out("historyLength"), refAge, 1));
+    }
 }
 
 void expectEquivalentAll(const Inputs& in, const std::string& what) {
@@ -115,6 +129,18 @@ void expectEquivalentAll(const Inputs& in, const std::string& what) {
             p.gamma = gamma;
             expectEquivalent(in, true, true, p, 2, what);
         }
+    for (bool warmUp : {true, false})
+        for (int threads : {1, 2, 3}) {
+            taaref::Params q;
+            q.warmUp = warmUp;
+            expectEquivalent(in, true, true, q, threads, what, true);
+            q.clip = false;
+            q.antiFlicker = false;
+            expectEquivalent(in, true, true, q, threads, what);
+        }
+    taaref::Params warm;
+    warm.warmUp = true;
+    expectEquivalent(in, true, false, warm, 2, what);  // no age fed: no warm-up
     for (bool clip : {true, false})
         for (float blurAlpha : {1.f, 0.f, 0.4f}) {
             taaref::Params q;

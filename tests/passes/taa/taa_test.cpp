@@ -250,6 +250,41 @@ TEST(Taa, BlurredHistoryIsWeightedDown) {
     EXPECT_LT(half, 0.7 * full);
 }
 
+// warmUp: historyLength is TAA's own age (its historyLength output fed back). A history of one
+// frame keeps a third of its weight (current 2 / (1 + 2)), not 1 - alpha = 0.9; an old history
+// (age 18 and more) the usual 0.9. The age output counts the frames in the result.
+TEST(Taa, WarmUpWeightsYoungHistoriesDown) {
+    constexpr int W = 24, H = 16;
+    Image cur(W, H, Format::Float3), hist(W, H, Format::Float3), len(W, H, Format::Float);
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> u(0.2f, 0.8f);
+    for (int c = 0; c < 3; ++c)
+        for (size_t i = 0; i < cur.extent().pixels(); ++i) {
+            cur.channel(c)[i] = u(rng);  // every 3x3 box is wide: the history is not clipped
+            hist.channel(c)[i] = cur.channel(c)[i] + 0.01f;
+        }
+    auto historyShare = [&](bool warmUp, float age, float* ageOut) {
+        len.fill(age);
+        auto h =
+            PassHarness::make<TaaPass>(cur.extent(), {{"warmUp", warmUp}, {"antiFlicker", false}});
+        h.bind("color", cur);
+        h.bind("history", hist);
+        h.bind("historyLength", len);
+        h.run();
+        *ageOut = h.out("historyLength").at(0, 5, 5);
+        return (h.out("color").at(1, 5, 5) - cur.at(1, 5, 5)) / 0.01f;
+    };
+    float age = 0;
+    EXPECT_NEAR(historyShare(false, 1.f, &age), 0.9f, 1e-3f);
+    EXPECT_EQ(age, 2.f);
+    EXPECT_NEAR(historyShare(true, 1.f, &age), 1.f / 3.f, 1e-3f);
+    EXPECT_NEAR(historyShare(true, 3.f, &age), 0.6f, 1e-3f);  // current 2 / 5
+    EXPECT_EQ(age, 4.f);
+    EXPECT_NEAR(historyShare(true, 30.f, &age), 0.9f, 1e-3f);
+    EXPECT_NEAR(historyShare(true, 1000.f, &age), 0.9f, 1e-3f);
+    EXPECT_EQ(age, 255.f);
+}
+
 namespace {
 
 /// The compile-time view of one pass: which inputs are bound and which scene facts sources
