@@ -307,7 +307,10 @@ struct RowTerms {
     bool hasC, hasM, hasH;
 };
 
-template <bool Contig, bool CR>
+// Geo: the depth and normal tests run (geometryTests); without them only the object id is
+// tested, which is what the tests with infinite thresholds give bit for bit (every distance
+// they compare is finite).
+template <bool Contig, bool CR, bool Geo>
 HWY_INLINE void tapVector(const Sources& S, const RowTerms& R, int x, ptrdiff_t base, VI idx) {
     const DF d;
     const DI di;
@@ -333,12 +336,15 @@ HWY_INLINE void tapVector(const Sources& S, const RowTerms& R, int x, ptrdiff_t 
     // The consistency test of the tap at (x0 + k, y0 + j) (SVGF; Falcor's isReprjValid), the
     // normal distance compared squared: no square root per tap.
     auto consistent = [&](int k, int j) HWY_ATTR {
-        const VF dz = hn::Mul(hn::Abs(hn::Sub(zR, simd::sanitizeDepth(ld(S.pz, k, j)))), iz);
-        const VF d0 = hn::Sub(c0, simd::sanitizeNormal(ld(S.pn[0], k, j)));
-        const VF d1 = hn::Sub(c1, simd::sanitizeNormal(ld(S.pn[1], k, j)));
-        const VF d2 = hn::Sub(c2, simd::sanitizeNormal(ld(S.pn[2], k, j)));
-        const VF dn2 = hn::MulAdd(d2, d2, hn::MulAdd(d1, d1, hn::Mul(d0, d0)));
-        MF ok = hn::AndNot(hn::Gt(dz, dThr), hn::Le(hn::Mul(dn2, in2), nThr2));
+        MF ok = hn::FirstN(d, hn::Lanes(d));
+        if constexpr (Geo) {
+            const VF dz = hn::Mul(hn::Abs(hn::Sub(zR, simd::sanitizeDepth(ld(S.pz, k, j)))), iz);
+            const VF d0 = hn::Sub(c0, simd::sanitizeNormal(ld(S.pn[0], k, j)));
+            const VF d1 = hn::Sub(c1, simd::sanitizeNormal(ld(S.pn[1], k, j)));
+            const VF d2 = hn::Sub(c2, simd::sanitizeNormal(ld(S.pn[2], k, j)));
+            const VF dn2 = hn::MulAdd(d2, d2, hn::MulAdd(d1, d1, hn::Mul(d0, d0)));
+            ok = hn::AndNot(hn::Gt(dz, dThr), hn::Le(hn::Mul(dn2, in2), nThr2));
+        }
         if (S.pIds) ok = hn::And(ok, hn::RebindMask(d, hn::Eq(ldId(k, j), rid)));
         return ok;
     };
@@ -443,7 +449,7 @@ HWY_INLINE void tapVector(const Sources& S, const RowTerms& R, int x, ptrdiff_t 
 /// The kernel over pixels [a, b) of one row (b - a >= one vector): vectors at x = a, a + n, ...,
 /// the last one moved left to end at b (its overlap is computed twice, to the same values), so
 /// no lane is stored past the range.
-template <bool CR>
+template <bool CR, bool Geo>
 void tapRow(const Sources& S, const RowTerms& R, int y, int a, int b, const int32_t* rFast,
             const int32_t* rDx, const int32_t* rDy) {
     const DF d;
@@ -463,12 +469,12 @@ void tapRow(const Sources& S, const RowTerms& R, int y, int a, int b, const int3
             if (hn::AllTrue(d, fast) && hn::AllTrue(di, hn::And(hn::Eq(dx, hn::Set(di, dx0)),
                                                                 hn::Eq(dy, hn::Set(di, dy0))))) {
                 const ptrdiff_t base = ptrdiff_t(y + dy0) * w + ptrdiff_t(x + dx0);
-                tapVector<true, CR>(S, R, x, base, zeroI);
+                tapVector<true, CR, Geo>(S, R, x, base, zeroI);
             } else {
                 const VI idx = hn::Add(hn::Mul(hn::Add(dy, hn::Set(di, y)), hn::Set(di, w)),
                                        hn::Add(hn::Iota(di, x), dx));
-                tapVector<false, CR>(S, R, x, 0,
-                                     hn::IfThenElse(hn::RebindMask(di, fast), idx, safe));
+                tapVector<false, CR, Geo>(S, R, x, 0,
+                                          hn::IfThenElse(hn::RebindMask(di, fast), idx, safe));
             }
         }
         if (x == b - n) break;
@@ -547,6 +553,9 @@ void reproject(FrameContext& ctx, PassIO& io, bool catmullRom_, float depthThres
     S.catmullRom = catmullRom_ && colorValid;
     // Tap margin of the tap kernel around (x0, y0): Catmull-Rom reads x0-1..x0+2.
     const bool cr = S.catmullRom;
+    // Infinite thresholds (geometryTests off): no tap can fail the depth or normal test, so
+    // neither the derivatives nor the tests are computed.
+    const bool geometry = std::isfinite(S.dThr) || std::isfinite(S.nThr2);
     const int lo = cr ? 1 : 0, hi = cr ? 2 : 1;
 
     ctx.parallelRows(h, [&](int ya, int yb) {
@@ -580,6 +589,7 @@ void reproject(FrameContext& ctx, PassIO& io, bool catmullRom_, float depthThres
             const float* z = depth.row(0, row);
             float* zo = geomSlot(row, 0);
             for (int x = 0; x < w; ++x) zo[x] = px::sanitizeDepth(z[x]);
+            if (!geometry) return;  // normals serve only the tests
             for (int c = 0; c < 3; ++c) {
                 const float* n = normal.row(c, row);
                 float* no = geomSlot(row, 1 + c);
@@ -631,7 +641,11 @@ void reproject(FrameContext& ctx, PassIO& io, bool catmullRom_, float depthThres
             const bool vectors = kTapKernel && w >= int(hn::Lanes(DF()));
             for (int a = 0, b = 0; a < w; a = b) {
                 b = w - a < 2 * kTile ? w : a + kTile;
-                rowDerivatives(g, u, d, w, a, b, rInvZ, rInvN, rn0, rn1, rn2);
+                if (geometry) {
+                    rowDerivatives(g, u, d, w, a, b, rInvZ, rInvN, rn0, rn1, rn2);
+                } else {  // reprojectPixel's tests then compare 0 with infinite thresholds
+                    for (float* r : {rInvZ, rInvN, rn0, rn1, rn2}) std::fill(r + a, r + b, 0.f);
+                }
                 // Previous-frame position in continuous pixel coordinates (centres at +0.5);
                 // rOk holds 0 where the position is unusable (no surface on the matrix path).
                 if (motion) {
@@ -723,9 +737,11 @@ void reproject(FrameContext& ctx, PassIO& io, bool catmullRom_, float depthThres
                 if (!vectors)
                     std::fill(rFast + a, rFast + b, 0);
                 else if (cr)
-                    tapRow<true>(S, R, y, a, b, rFast, rDx, rDy);
+                    geometry ? tapRow<true, true>(S, R, y, a, b, rFast, rDx, rDy)
+                             : tapRow<true, false>(S, R, y, a, b, rFast, rDx, rDy);
                 else
-                    tapRow<false>(S, R, y, a, b, rFast, rDx, rDy);
+                    geometry ? tapRow<false, true>(S, R, y, a, b, rFast, rDx, rDy)
+                             : tapRow<false, false>(S, R, y, a, b, rFast, rDx, rDy);
             }
             // Everything else, and the kernel's 3x3-fallback pixels, per pixel.
 #pragma GCC ivdep

@@ -23,12 +23,15 @@ const reprojscene::Frames& frames() {
 }
 
 // state.range(0): threads; state.range(1): 0 = SVGF (bilinear, colour + moments + length),
-// 1 = TAA history (Catmull-Rom, colour only).
+// 1 = TAA history as svgf.json has it (Catmull-Rom, colour, its age and resampleBlur, without
+// the depth/normal tests), 2 = the same with the tests.
 void BM_Reprojection(benchmark::State& state) {
     const auto& f = frames();
-    const bool taa = state.range(1) != 0;
+    const bool taa = state.range(1) != 0, tests = state.range(1) != 1;
     auto h = PassHarness::make<ReprojectionPass>(
-        {kW, kH}, {{"filter", std::string(taa ? "catmullrom" : "bilinear")}}, int(state.range(0)));
+        {kW, kH},
+        {{"filter", std::string(taa ? "catmullrom" : "bilinear")}, {"geometryTests", tests}},
+        int(state.range(0)));
     h.bind("depth", f.depth);
     h.bind("normal", f.normal);
     h.bind("objectId", f.objectId);
@@ -37,12 +40,11 @@ void BM_Reprojection(benchmark::State& state) {
     h.bind("prevNormal", f.prevNormal);
     h.bind("prevObjectId", f.prevObjectId);
     h.bind("prevColor", f.prevColor);
-    if (!taa) {
+    h.bind("prevHistoryLength", f.prevHistoryLength);
+    if (!taa)
         h.bind("prevMoments", f.prevMoments);
-        h.bind("prevHistoryLength", f.prevHistoryLength);
-    } else {
-        h.useOutputs({"color", "historyLength"});
-    }
+    else
+        h.useOutputs({"color", "historyLength", "resampleBlur"});
     h.run();  // allocate the outputs
     for (auto _ : state) {
         h.run();
@@ -50,10 +52,12 @@ void BM_Reprojection(benchmark::State& state) {
     }
     state.counters["Mpx/s"] = benchmark::Counter(double(kW) * kH * double(state.iterations()) / 1e6,
                                                  benchmark::Counter::kIsRate);
-    state.SetLabel(taa ? "catmullrom (taaReprojection)" : "bilinear (single.reprojection)");
+    state.SetLabel(!taa    ? "bilinear (single.reprojection)"
+                   : tests ? "catmullrom, depth/normal tests"
+                           : "catmullrom, no depth/normal tests (taaReprojection)");
 }
 BENCHMARK(BM_Reprojection)
-    ->ArgsProduct({{1, 2}, {0, 1}})
+    ->ArgsProduct({{1, 2}, {0, 1, 2}})
     ->ArgNames({"threads", "taa"})
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);
