@@ -239,6 +239,11 @@ double RegionStats::ratio(int k) const {
     return std::max(outSse[size_t(k)] / n, 1e-10) / std::max(inSse[size_t(k)] / n, 1e-10);
 }
 
+bool RegionStats::worseThanInput(int k) const {
+    const double n = double(std::max<uint64_t>(samples[size_t(k)], 1));
+    return outSse[size_t(k)] / n > inSse[size_t(k)] / n + kMseSlack;
+}
+
 RegionStats compareRegions(const Registry& registry, const std::string& outPattern,
                            const std::string& refPattern, const std::string& inputPattern,
                            const std::vector<int64_t>& frames, ToneMap toneMap) {
@@ -271,7 +276,7 @@ std::string formatRegionTable(const RegionStats& s) {
         if (!s.has(k)) continue;
         std::snprintf(line, sizeof line, "%-12s %6.1f%%  %9.2f  %9.2f   %10.3f%s\n", regionName(k),
                       100.0 * double(s.samples[size_t(k)]) / all, s.inPsnr(k), s.outPsnr(k),
-                      s.ratio(k), s.ratio(k) > 1.0 ? "  worse than the input" : "");
+                      s.ratio(k), s.worseThanInput(k) ? "  worse than the input" : "");
         t += line;
     }
     return t;
@@ -286,6 +291,7 @@ nlohmann::json regionsToJson(const RegionStats& s) {
                             {"inputPsnr", s.inPsnr(k)},
                             {"outputPsnr", s.outPsnr(k)},
                             {"mseRatio", s.ratio(k)},
+                            {"worseThanInput", s.worseThanInput(k)},
                             {"frames", s.framesWith[size_t(k)]}};
     }
     return j;

@@ -90,6 +90,28 @@ TEST(Regions, StatsCompareOutputAndInputPerRegion) {
     EXPECT_GT(s.ratio(kBackground), 1.0);  // worse than the input
     EXPECT_LT(s.ratio(kAll), 1.0);         // though better overall
     EXPECT_GT(s.outPsnr(kAll), s.inPsnr(kAll));
+    EXPECT_TRUE(s.worseThanInput(kBackground));
+    EXPECT_FALSE(s.worseThanInput(kAll));
     EXPECT_NE(formatRegionTable(s).find("worse than the input"), std::string::npos);
     EXPECT_EQ(regionsToJson(s)["background"]["frames"], 2);
+    EXPECT_EQ(regionsToJson(s)["background"]["worseThanInput"], true);
+}
+
+// A region the output passes through unchanged up to float rounding (emission added back after
+// filtering) is not reported worse than the input; an error of 0.005 in linear value is.
+TEST(Regions, RoundingIsNotWorseThanTheInput) {
+    RegionMasks m = classifyRegions(surface(), nullptr);
+    Image ref(W, H, Format::Float3), in(W, H, Format::Float3), out(W, H, Format::Float3);
+    ref.fill(0.5f);
+    in.fill(0.6f);
+    out.fill(0.600001f);  // 1e-6 above the input: rounding-level
+    RegionStats s;
+    s.add(out.view(), ref.view(), in.view(), m);
+    EXPECT_GT(s.ratio(kAll), 1.0);
+    EXPECT_FALSE(s.worseThanInput(kAll));
+    EXPECT_EQ(formatRegionTable(s).find("worse than the input"), std::string::npos);
+    out.fill(0.605f);
+    RegionStats t;
+    t.add(out.view(), ref.view(), in.view(), m);
+    EXPECT_TRUE(t.worseThanInput(kAll));
 }

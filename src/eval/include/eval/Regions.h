@@ -72,6 +72,12 @@ struct RegionStats {
     double inPsnr(int region) const;
     /// Output MSE over input MSE (< 1: the filter helped there).
     double ratio(int region) const;
+    /// Output MSE above the input's by more than kMseSlack: rounding (a region passed through
+    /// unchanged, such as emission added back, or a float sky written and read again) is not.
+    bool worseThanInput(int region) const;
+    /// 1e-6 of a squared display value in [0, 1] (PSNR 60 dB): invisible, and far below any real
+    /// regression (a black sky: MSE 0.44 there).
+    static constexpr double kMseSlack = 1e-6;
 };
 
 /// Compares an output sequence with its reference per region, taking the G-buffer and the 1-spp
