@@ -255,86 +255,83 @@ void ExrWriter::writeExr(const ImageView& img, const std::string& file, const Fr
     // value, so a file never holds Inf or NaN.
     std::atomic<size_t> nans{0}, clamped{0};
     const float limit = asHalf ? kHalfMax : std::numeric_limits<float>::max();
-    if (asHalf)
-        halfScratch_.resize(N * size_t(C));
-    else
-        floatScratch_.resize(N * size_t(C));
-    ctx.parallelRows(H, [&](int y0, int y1) {
+    // Values [b, e) of image channel c, converted into dst (half or float).
+    auto convert = [&](int c, size_t b, size_t e, void* dst) {
         size_t localNaN = 0, localClamp = 0;
-        for (int c = 0; c < C; ++c) {
-            const size_t b = size_t(y0) * size_t(W), e = size_t(y1) * size_t(W);
-            const float* src = img.planes[size_t(c)];
-            for (size_t i = b; i < e; ++i) {
-                float v;
-                if (ids) {
-                    v = float(reinterpret_cast<const int32_t*>(src)[i]);
-                } else {
-                    v = src[i];
-                    if (std::isnan(v)) {
-                        v = 0.f;
-                        ++localNaN;
-                    } else if (std::fabs(v) > limit) {
-                        v = std::copysign(limit, v);
-                        ++localClamp;
-                    }
+        const float* src = img.planes[size_t(c)];
+        for (size_t i = b; i < e; ++i) {
+            float v;
+            if (ids) {
+                v = float(reinterpret_cast<const int32_t*>(src)[i]);
+            } else {
+                v = src[i];
+                if (std::isnan(v)) {
+                    v = 0.f;
+                    ++localNaN;
+                } else if (std::fabs(v) > limit) {
+                    v = std::copysign(limit, v);
+                    ++localClamp;
                 }
-                if (asHalf)
-                    halfScratch_[size_t(c) * N + i] = half(v);
-                else
-                    floatScratch_[size_t(c) * N + i] = v;
             }
+            if (asHalf)
+                static_cast<half*>(dst)[i - b] = half(v);
+            else
+                static_cast<float*>(dst)[i - b] = v;
         }
-        nans += localNaN;
-        clamped += localClamp;
-    });
-    if (clamped && !warnedRange_) {
-        spdlog::warn(
-            "ExrWriter: frame {}: {} values beyond the {} range clamped to +-{} (warned "
-            "once per run)",
-            ctx.frameNumber, clamped.load(), asHalf ? "half" : "float", limit);
-        warnedRange_ = true;
-    }
-    if (nans && !warnedNaN_) {
-        spdlog::warn("ExrWriter: frame {}: {} NaN values written as 0 (warned once per run)",
-                     ctx.frameNumber, nans.load());
-        warnedNaN_ = true;
-    }
+        if (localNaN) nans += localNaN;
+        if (localClamp) clamped += localClamp;
+    };
+    const bool zip = compression_ == "zip" || compression_ == "zips";
 
     static const char* rgba[] = {"R", "G", "B", "A"};
     Imf::Header header(W, H);
     header.compression() = compressionOf(compression_);
     const Imf::PixelType type = asHalf ? Imf::HALF : Imf::FLOAT;
     const size_t elem = asHalf ? sizeof(half) : sizeof(float);
-    char* data = asHalf ? reinterpret_cast<char*>(halfScratch_.data())
-                        : reinterpret_cast<char*>(floatScratch_.data());
-    Imf::FrameBuffer fb;
-    for (int c = 0; c < C; ++c) {
-        const char* name = ids ? "id" : rgba[c];
-        header.channels().insert(name, Imf::Channel(type));
-        fb.insert(name, Imf::Slice(type, data + size_t(c) * N * elem, elem, elem * size_t(W)));
-    }
+    for (int c = 0; c < C; ++c) header.channels().insert(ids ? "id" : rgba[c], Imf::Channel(type));
     if (ctx.run) {
         header.insert("kestrel.graph", Imf::StringAttribute(ctx.run->graphName));
         header.insert("kestrel.provenance", Imf::StringAttribute(ctx.run->provenance));
     }
+    // The image channel of each of the header's (alphabetically ordered) channels.
+    std::vector<int> channelOf;
+    for (auto it = header.channels().begin(); it != header.channels().end(); ++it)
+        for (int c = 0; c < C; ++c)
+            if (std::strcmp(it.name(), ids ? "id" : rgba[c]) == 0) channelOf.push_back(c);
 
     int threads = ctx.parallel ? ctx.parallel->threadCount() : 1;
     std::string tmp = tempName(file);
     const int64_t frame = ctx.frameNumber;
     try {
         injectFault("open", frame);
-        if (compression_ == "zip" || compression_ == "zips") {
-            // The planes in the header's (alphabetical) channel order.
-            std::vector<const void*> planes;
-            for (auto it = header.channels().begin(); it != header.channels().end(); ++it)
-                planes.push_back(fb.findSlice(it.name())->base);
+        if (zip) {
+            // Converted a scan line at a time as the encoder asks: no frame-sized copy.
+            const ZipRowSource rows = [&](size_t ch, size_t row, unsigned char* dst) {
+                convert(channelOf[ch], row * size_t(W), (row + 1) * size_t(W), dst);
+            };
             ZipChunkHook hook;
             if (faultStep_ == "chunk" && faultFrame_ == frame)
                 hook = [this, frame](size_t chunk) {
                     if (chunk == 1) injectFault("chunk", frame);  // after one chunk is on disk
                 };
-            writeZipScanlines(tmp, header, planes, threads, zipLevel_, hook);
+            writeZipScanlines(tmp, header, rows, threads, zipLevel_, hook);
         } else {
+            if (asHalf)
+                halfScratch_.resize(N * size_t(C));
+            else
+                floatScratch_.resize(N * size_t(C));
+            char* data = asHalf ? reinterpret_cast<char*>(halfScratch_.data())
+                                : reinterpret_cast<char*>(floatScratch_.data());
+            ctx.parallelRows(H, [&](int y0, int y1) {
+                for (int c = 0; c < C; ++c) {
+                    const size_t b = size_t(y0) * size_t(W), e = size_t(y1) * size_t(W);
+                    convert(c, b, e, data + (size_t(c) * N + b) * elem);
+                }
+            });
+            Imf::FrameBuffer fb;
+            for (int c = 0; c < C; ++c)
+                fb.insert(ids ? "id" : rgba[c],
+                          Imf::Slice(type, data + size_t(c) * N * elem, elem, elem * size_t(W)));
             if (Imf::globalThreadCount() < threads) Imf::setGlobalThreadCount(threads);
             Imf::OutputFile out(tmp.c_str(), header, Imf::globalThreadCount());
             out.setFrameBuffer(fb);
@@ -349,6 +346,23 @@ void ExrWriter::writeExr(const ImageView& img, const std::string& file, const Fr
         std::error_code ec;
         fs::remove(tmp, ec);
         throw Error("cannot write " + file + ": " + e.what());
+    }
+    warnSanitised(ctx.frameNumber, nans, clamped, asHalf, limit);
+}
+
+void ExrWriter::warnSanitised(int64_t frameNumber, size_t nans, size_t clamped, bool asHalf,
+                              float limit) {
+    if (clamped && !warnedRange_) {
+        spdlog::warn(
+            "ExrWriter: frame {}: {} values beyond the {} range clamped to +-{} (warned "
+            "once per run)",
+            frameNumber, clamped, asHalf ? "half" : "float", limit);
+        warnedRange_ = true;
+    }
+    if (nans && !warnedNaN_) {
+        spdlog::warn("ExrWriter: frame {}: {} NaN values written as 0 (warned once per run)",
+                     frameNumber, nans);
+        warnedNaN_ = true;
     }
 }
 

@@ -26,6 +26,8 @@ public:
 
 private:
     void writeExr(const ImageView& img, const std::string& path, const FrameContext& ctx);
+    /// Warns (once per run each) of the values written as 0 (NaN) or clamped to the range.
+    void warnSanitised(int64_t frameNumber, size_t nans, size_t clamped, bool asHalf, float limit);
     /// Throws when KESTREL_TEST_WRITE_FAULT names this step and frame (tests only).
     void injectFault(const char* step, int64_t frame) const;
 
@@ -42,7 +44,7 @@ private:
 
     // Per-run warning flags (logging only, not image state) and conversion scratch.
     bool warnedRange_ = false, warnedNaN_ = false;
-    std::vector<half> halfScratch_;
+    std::vector<half> halfScratch_;  ///< the frame converted, for compressions other than ZIP
     std::vector<float> floatScratch_;
 };
 

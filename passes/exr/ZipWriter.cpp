@@ -51,6 +51,24 @@ struct Encoder {
 void writeZipScanlines(const std::string& path, const Imf::Header& header,
                        const std::vector<const void*>& planes, int threads, int level,
                        const ZipChunkHook& afterChunk) {
+    const Imath::Box2i dw = header.dataWindow();
+    const size_t W = size_t(std::max(dw.max.x - dw.min.x + 1, 0));
+    std::vector<size_t> rowBytes;
+    for (auto it = header.channels().begin(); it != header.channels().end(); ++it)
+        rowBytes.push_back(W * (it.channel().type == Imf::HALF ? 2 : 4));
+    if (rowBytes.size() > planes.size())
+        throw Error("writeZipScanlines: fewer planes than the header's channels");
+    if (rowBytes.size() < planes.size())
+        throw Error("writeZipScanlines: more planes than the header's channels");
+    const ZipRowSource rows = [&](size_t c, size_t row, unsigned char* dst) {
+        std::memcpy(dst, static_cast<const unsigned char*>(planes[c]) + row * rowBytes[c],
+                    rowBytes[c]);
+    };
+    writeZipScanlines(path, header, rows, threads, level, afterChunk);
+}
+
+void writeZipScanlines(const std::string& path, const Imf::Header& header, const ZipRowSource& rows,
+                       int threads, int level, const ZipChunkHook& afterChunk) {
     const Imf::Compression compression = header.compression();
     if (compression != Imf::ZIP_COMPRESSION && compression != Imf::ZIPS_COMPRESSION)
         throw Error("writeZipScanlines: the header's compression is not ZIP or ZIPS");
@@ -59,11 +77,7 @@ void writeZipScanlines(const std::string& path, const Imf::Header& header,
     header.sanityCheck(false);
     const Imath::Box2i dw = header.dataWindow();
     const size_t W = size_t(dw.max.x - dw.min.x + 1), H = size_t(dw.max.y - dw.min.y + 1);
-    struct Chan {
-        const unsigned char* data;
-        size_t rowBytes;
-    };
-    std::vector<Chan> chans;
+    std::vector<size_t> chans;  // bytes per scan line of each channel
     size_t bytesPerLine = 0;
     for (auto it = header.channels().begin(); it != header.channels().end(); ++it) {
         const Imf::Channel& ch = it.channel();
@@ -71,14 +85,10 @@ void writeZipScanlines(const std::string& path, const Imf::Header& header,
             ch.ySampling != 1)
             throw Error(std::string("writeZipScanlines: channel ") + it.name() +
                         " is not a full-resolution half or float channel");
-        if (chans.size() == planes.size())
-            throw Error("writeZipScanlines: fewer planes than the header's channels");
         const size_t rowBytes = W * (ch.type == Imf::HALF ? 2 : 4);
-        chans.push_back({static_cast<const unsigned char*>(planes[chans.size()]), rowBytes});
+        chans.push_back(rowBytes);
         bytesPerLine += rowBytes;
     }
-    if (chans.size() != planes.size())
-        throw Error("writeZipScanlines: more planes than the header's channels");
     if (chans.empty()) throw Error("writeZipScanlines: the header has no channels");
     const size_t lines = compression == Imf::ZIP_COMPRESSION ? 16 : 1;
     const size_t chunks = (H + lines - 1) / lines;
@@ -89,60 +99,69 @@ void writeZipScanlines(const std::string& path, const Imf::Header& header,
     // values in turn), its bytes split into even and odd halves, each byte stored as its
     // difference from the one before plus 128, deflated in zlib format; kept as is when deflate
     // does not shrink it, as OpenEXR does.
-    std::vector<std::vector<unsigned char>> encoded(chunks);
-    std::atomic<size_t> next{0};
-    std::atomic<bool> failed{false};
-    std::string failure;
-    std::mutex failureLock;
-    auto work = [&] {  // never throws: it may run on a helper thread
-        try {
-            Encoder e(std::clamp(level, 1, 12));
-            for (size_t i; !failed && (i = next++) < chunks;) {
-                const size_t rows = std::min(lines, H - i * lines), n = rows * bytesPerLine;
-                e.raw.resize(n);
-                e.split.resize(n);
-                e.out.resize(n);
-                unsigned char* r = e.raw.data();
-                for (size_t l = 0; l < rows; ++l)
-                    for (const Chan& c : chans) {
-                        std::memcpy(r, c.data + (i * lines + l) * c.rowBytes, c.rowBytes);
-                        r += c.rowBytes;
+    const int workers =
+        std::clamp(int(std::min<size_t>(size_t(std::max(threads, 1)), chunks)), 1, 64);
+    // A batch of chunks is encoded at once, then written: a few per worker keep them busy while
+    // only the batch's encoded bytes are held (not the whole frame's).
+    const size_t batch = size_t(workers) * 4;
+    std::vector<std::vector<unsigned char>> encoded(std::min(batch, chunks));
+    std::vector<std::unique_ptr<Encoder>> encoders(static_cast<size_t>(workers));
+    for (auto& e : encoders) e = std::make_unique<Encoder>(std::clamp(level, 1, 12));
+    auto encodeBatch = [&](size_t first, size_t count) {
+        std::atomic<size_t> next{0};
+        std::atomic<bool> failed{false};
+        std::string failure;
+        std::mutex failureLock;
+        auto work = [&](Encoder& e) {  // never throws: it may run on a helper thread
+            try {
+                for (size_t k; !failed && (k = next++) < count;) {
+                    const size_t i = first + k;
+                    const size_t lines0 = std::min(lines, H - i * lines), n = lines0 * bytesPerLine;
+                    e.raw.resize(n);
+                    e.split.resize(n);
+                    e.out.resize(n);
+                    unsigned char* r = e.raw.data();
+                    for (size_t l = 0; l < lines0; ++l)
+                        for (size_t c = 0; c < chans.size(); ++c) {
+                            rows(c, i * lines + l, r);
+                            r += chans[c];
+                        }
+                    const size_t half = (n + 1) / 2;
+                    unsigned char *lo = e.split.data(), *hi = lo + half;
+                    for (size_t j = 0; j < n / 2; ++j) {
+                        lo[j] = e.raw[2 * j];
+                        hi[j] = e.raw[2 * j + 1];
                     }
-                const size_t half = (n + 1) / 2;
-                unsigned char *lo = e.split.data(), *hi = lo + half;
-                for (size_t j = 0; j < n / 2; ++j) {
-                    lo[j] = e.raw[2 * j];
-                    hi[j] = e.raw[2 * j + 1];
+                    if (n % 2) lo[n / 2] = e.raw[n - 1];
+                    // The predictor in place, from the end (each delta needs the byte before
+                    // it as it was); `raw` stays for a chunk deflate does not shrink.
+                    for (size_t j = n - 1; j > 0; --j)
+                        e.split[j] = static_cast<unsigned char>(e.split[j] - e.split[j - 1] + 128);
+                    const size_t size = libdeflate_zlib_compress(e.deflater, e.split.data(), n,
+                                                                 e.out.data(), n - 1);
+                    if (size > 0)
+                        encoded[k].assign(e.out.begin(), e.out.begin() + ptrdiff_t(size));
+                    else  // not smaller: the scan lines as they are
+                        encoded[k] = e.raw;
                 }
-                if (n % 2) lo[n / 2] = e.raw[n - 1];
-                // The predictor in place, from the end (each delta needs the byte before it
-                // as it was); `raw` stays for a chunk deflate does not shrink.
-                for (size_t j = n - 1; j > 0; --j)
-                    e.split[j] = static_cast<unsigned char>(e.split[j] - e.split[j - 1] + 128);
-                const size_t size =
-                    libdeflate_zlib_compress(e.deflater, e.split.data(), n, e.out.data(), n - 1);
-                if (size > 0)
-                    encoded[i].assign(e.out.begin(), e.out.begin() + ptrdiff_t(size));
-                else  // not smaller: the scan lines as they are
-                    encoded[i] = e.raw;
+            } catch (const std::exception& ex) {
+                std::lock_guard<std::mutex> g(failureLock);
+                if (!failed.exchange(true)) failure = ex.what();
             }
-        } catch (const std::exception& ex) {
-            std::lock_guard<std::mutex> g(failureLock);
-            if (!failed.exchange(true)) failure = ex.what();
+        };
+        std::vector<std::thread> pool;
+        const size_t helpers = std::min(size_t(workers), count) - 1;
+        pool.reserve(helpers);
+        try {
+            for (size_t t = 0; t < helpers; ++t)
+                pool.emplace_back(work, std::ref(*encoders[t + 1]));
+        } catch (...) {
+            // no more threads: the ones started and this one share the chunks
         }
+        work(*encoders[0]);
+        for (auto& t : pool) t.join();
+        if (failed) throw Error("encoding: " + failure);
     };
-    const int helpers =
-        std::clamp(int(std::min<size_t>(size_t(std::max(threads, 1)), chunks)) - 1, 0, 63);
-    std::vector<std::thread> pool;
-    pool.reserve(size_t(helpers));
-    try {
-        for (int i = 0; i < helpers; ++i) pool.emplace_back(work);
-    } catch (...) {
-        // no more threads: the ones started and this one share the chunks
-    }
-    work();
-    for (auto& t : pool) t.join();
-    if (failed) throw Error("encoding: " + failure);
 
     std::ofstream file(path, std::ios::binary | std::ios::trunc);
     if (!file) throw Error("cannot create the file");
@@ -156,17 +175,23 @@ void writeZipScanlines(const std::string& path, const Imf::Header& header,
         const uint64_t table = os.tellp();
         std::vector<unsigned char> offsets(chunks * 8, 0);
         os.write(reinterpret_cast<const char*>(offsets.data()), int(offsets.size()));
-        for (size_t i = 0; i < chunks; ++i) {
-            const uint64_t at = os.tellp();
-            for (int k = 0; k < 8; ++k)
-                offsets[i * 8 + size_t(k)] = static_cast<unsigned char>(at >> (8 * k));
-            putLE32(b, uint32_t(int32_t(dw.min.y + int(i * lines))));
-            putLE32(b + 4, uint32_t(encoded[i].size()));
-            os.write(reinterpret_cast<const char*>(b), 8);
-            os.write(reinterpret_cast<const char*>(encoded[i].data()), int(encoded[i].size()));
-            if (afterChunk) {
-                file.flush();  // the chunks so far are in the file, as a failing disk leaves them
-                afterChunk(i + 1);
+        for (size_t first = 0; first < chunks; first += batch) {
+            const size_t count = std::min(batch, chunks - first);
+            encodeBatch(first, count);
+            for (size_t k = 0; k < count; ++k) {
+                const size_t i = first + k;
+                const uint64_t at = os.tellp();
+                for (int j = 0; j < 8; ++j)
+                    offsets[i * 8 + size_t(j)] = static_cast<unsigned char>(at >> (8 * j));
+                putLE32(b, uint32_t(int32_t(dw.min.y + int(i * lines))));
+                putLE32(b + 4, uint32_t(encoded[k].size()));
+                os.write(reinterpret_cast<const char*>(b), 8);
+                os.write(reinterpret_cast<const char*>(encoded[k].data()), int(encoded[k].size()));
+                if (afterChunk) {
+                    file.flush();  // the chunks so far are in the file, as a failing disk leaves
+                                   // them
+                    afterChunk(i + 1);
+                }
             }
         }
         os.seekp(table);

@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstring>
 #include <fstream>
 #include <functional>
@@ -492,6 +493,49 @@ TEST(ZipWriter, OutputDoesNotDependOnTheThreadCountAndItsOwnReaderAgrees) {
         ASSERT_EQ(fb[i], widen(b[i])) << i;
         ASSERT_EQ(fg[i], widen(g[i])) << i;
     }
+}
+
+// The writer streams: a scan line is asked for when its chunk is encoded, and chunks are written a
+// batch at a time (a few per thread), so it never holds a frame-sized copy or the whole frame's
+// encoded chunks. When the first chunk is on disk, only the first batch's rows were asked for;
+// every row of every channel is asked for exactly once; the file reads back.
+TEST(ZipWriter, StreamsRowsAndChunksABatchAtATime) {
+    TempDir dir("zipstream");
+    constexpr int W = 40, H = 1024;  // 64 chunks of 16 lines
+    Imf::Header h(W, H);
+    h.compression() = Imf::ZIP_COMPRESSION;
+    h.channels().insert("G", Imf::Channel(Imf::FLOAT));
+    h.channels().insert("R", Imf::Channel(Imf::FLOAT));
+    std::vector<std::atomic<int>> asked(2 * size_t(H));
+    std::atomic<size_t> rowsAsked{0};
+    const ZipRowSource rows = [&](size_t c, size_t row, unsigned char* dst) {
+        ++asked[c * H + row];
+        ++rowsAsked;
+        for (int x = 0; x < W; ++x) {
+            const float v = float(c) * 1000.f + float(row) + 0.25f * float(x);
+            std::memcpy(dst + 4 * size_t(x), &v, 4);
+        }
+    };
+    size_t askedAtFirstChunk = 0;
+    const std::string path = (dir.path / "stream.exr").string();
+    writeZipScanlines(path, h, rows, 2, 4, [&](size_t written) {
+        if (written == 1) askedAtFirstChunk = rowsAsked;
+    });
+    EXPECT_GT(askedAtFirstChunk, 0u);
+    EXPECT_LE(askedAtFirstChunk, 2u * 16u * 8u) << "more than a batch (8 chunks) encoded first";
+    for (size_t i = 0; i < asked.size(); ++i) ASSERT_EQ(asked[i], 1) << "row " << i % H;
+    Imf::InputFile in(path.c_str());
+    std::vector<float> g(size_t(W) * H), r(size_t(W) * H);
+    Imf::FrameBuffer fb;
+    fb.insert("G", Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(g.data()), 4, 4 * W));
+    fb.insert("R", Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(r.data()), 4, 4 * W));
+    in.setFrameBuffer(fb);
+    in.readPixels(0, H - 1);
+    for (int y = 0; y < H; y += 37)
+        for (int x = 0; x < W; x += 7) {
+            EXPECT_EQ(g[size_t(y) * W + x], float(y) + 0.25f * float(x));
+            EXPECT_EQ(r[size_t(y) * W + x], 1000.f + float(y) + 0.25f * float(x));
+        }
 }
 
 TEST(ZipScanlines, WindowsWiderThanAnIntAreRefusedWhateverMaxPixels) {
