@@ -188,8 +188,8 @@ void writeZipScanlines(const std::string& path, const Imf::Header& header, const
                 os.write(reinterpret_cast<const char*>(b), 8);
                 os.write(reinterpret_cast<const char*>(encoded[k].data()), int(encoded[k].size()));
                 if (afterChunk) {
-                    file.flush();  // the chunks so far are in the file, as a failing disk leaves
-                                   // them
+                    // The chunks so far are in the file, as a failing disk leaves them.
+                    file.flush();
                     afterChunk(i + 1);
                 }
             }

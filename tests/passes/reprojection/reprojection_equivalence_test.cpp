@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <map>
 #include <string>
 
 #include "HwyTargets.h"
@@ -57,7 +58,7 @@ void setScenes(SceneData& cur, SceneData& prev) {
 }
 
 reprojref::Outputs runReference(const Frames& f, const Binding& b, const SceneData* cur,
-                                const SceneData* prev, bool catmullRom) {
+                                const SceneData* prev, const reprojref::Params& p) {
     reprojref::Inputs in;
     in.depth = &f.depth;
     in.normal = &f.normal;
@@ -72,9 +73,20 @@ reprojref::Outputs runReference(const Frames& f, const Binding& b, const SceneDa
     in.prevHistoryLength = b.prevHistoryLength ? &f.prevHistoryLength : nullptr;
     in.scene = cur;
     in.previousScene = prev;
-    reprojref::Params p;
-    p.catmullRom = catmullRom;
     return reprojref::reproject(in, p);
+}
+
+/// The pass's parameters for the reference's: infinite thresholds are geometryTests off (the
+/// reference runs them as tests no finite distance fails).
+std::map<std::string, ParamValue> passParams(const reprojref::Params& p) {
+    std::map<std::string, ParamValue> m{{"filter", p.catmullRom ? "catmullrom" : "bilinear"}};
+    if (std::isinf(p.depthThreshold) && std::isinf(p.normalThreshold)) {
+        m["geometryTests"] = false;
+    } else {
+        m["depthThreshold"] = double(p.depthThreshold);
+        m["normalThreshold"] = double(p.normalThreshold);
+    }
+    return m;
 }
 
 /// Bitwise comparison; reports the first differing float.
@@ -89,13 +101,12 @@ reprojref::Outputs runReference(const Frames& f, const Binding& b, const SceneDa
     return ::testing::AssertionSuccess();
 }
 
-void expectEquivalent(const Frames& f, const Binding& b, bool catmullRom, int threads,
+void expectEquivalent(const Frames& f, const Binding& b, const reprojref::Params& p, int threads,
                       const std::string& what) {
-    SCOPED_TRACE(what + (catmullRom ? " catmullrom" : " bilinear") + " threads " +
-                 std::to_string(threads));
-    const Extent e = f.depth.extent();
-    auto h = PassHarness::make<ReprojectionPass>(
-        e, {{"filter", std::string(catmullRom ? "catmullrom" : "bilinear")}}, threads);
+    SCOPED_TRACE(what + (p.catmullRom ? " catmullrom" : " bilinear") + " threads " +
+                 std::to_string(threads) + " thresholds " + std::to_string(p.depthThreshold) + " " +
+                 std::to_string(p.normalThreshold));
+    auto h = PassHarness::make<ReprojectionPass>(f.depth.extent(), passParams(p), threads);
     h.bind("depth", f.depth);
     h.bind("normal", f.normal);
     if (b.objectId) h.bind("objectId", f.objectId);
@@ -110,7 +121,7 @@ void expectEquivalent(const Frames& f, const Binding& b, bool catmullRom, int th
     if (b.cameras) setScenes(h.scene, h.previousScene);
     h.run();
     const auto ref = runReference(f, b, b.cameras ? &h.scene : nullptr,
-                                  b.cameras ? &h.previousScene : nullptr, catmullRom);
+                                  b.cameras ? &h.previousScene : nullptr, p);
     EXPECT_TRUE(sameBits(h.out("color"), ref.color)) << "color";
     EXPECT_TRUE(sameBits(h.out("moments"), ref.moments)) << "moments";
     EXPECT_TRUE(sameBits(h.out("historyLength"), ref.historyLength)) << "historyLength";
@@ -118,7 +129,11 @@ void expectEquivalent(const Frames& f, const Binding& b, bool catmullRom, int th
 
 void expectEquivalentAll(const Frames& f, const Binding& b, const std::string& what) {
     for (bool cr : {false, true})
-        for (int threads : {1, 2, 3}) expectEquivalent(f, b, cr, threads, what);
+        for (int threads : {1, 2, 3}) {
+            reprojref::Params p;
+            p.catmullRom = cr;
+            expectEquivalent(f, b, p, threads, what);
+        }
 }
 
 /// Overwrites about `fraction` of every float input's values with extreme ones.
@@ -261,49 +276,15 @@ TEST_P(ReprojectionEquivalence, TinyImages) {
 }
 
 TEST_P(ReprojectionEquivalence, Thresholds) {
-    // Infinite thresholds: geometryTests off (TAA's history; also with Catmull-Rom), which the
-    // reference runs as tests no finite distance fails.
-    constexpr double kOff = std::numeric_limits<double>::infinity();
+    // Infinite thresholds: geometryTests off (TAA's history; also with Catmull-Rom).
+    constexpr float kOff = std::numeric_limits<float>::infinity();
     const Frames f = reprojscene::makeFrames(50, 30, 11);
-    for (auto [dz, dn] : {std::pair{0.0, 0.0}, {0.5, 0.1}, {1e6, 1e6}, {kOff, kOff}})
+    for (auto [dz, dn] : {std::pair{0.f, 0.f}, {0.5f, 0.1f}, {1e6f, 1e6f}, {kOff, kOff}})
         for (bool catmullRom : {false, true}) {
-            std::map<std::string, ParamValue> params{
-                {"filter", catmullRom ? "catmullrom" : "bilinear"}};
-            if (dz == kOff)
-                params["geometryTests"] = false;
-            else
-                params.insert({{"depthThreshold", dz}, {"normalThreshold", dn}});
-            auto h = PassHarness::make<ReprojectionPass>(f.depth.extent(), params, 2);
-            h.bind("depth", f.depth);
-            h.bind("normal", f.normal);
-            h.bind("objectId", f.objectId);
-            h.bind("motion", f.motion);
-            h.bind("prevDepth", f.prevDepth);
-            h.bind("prevNormal", f.prevNormal);
-            h.bind("prevObjectId", f.prevObjectId);
-            h.bind("prevColor", f.prevColor);
-            h.bind("prevMoments", f.prevMoments);
-            h.bind("prevHistoryLength", f.prevHistoryLength);
-            h.run();
-            reprojref::Inputs in;
-            in.depth = &f.depth;
-            in.normal = &f.normal;
-            in.objectId = &f.objectId;
-            in.motion = &f.motion;
-            in.prevDepth = &f.prevDepth;
-            in.prevNormal = &f.prevNormal;
-            in.prevObjectId = &f.prevObjectId;
-            in.prevColor = &f.prevColor;
-            in.prevMoments = &f.prevMoments;
-            in.prevHistoryLength = &f.prevHistoryLength;
             reprojref::Params p;
-            p.depthThreshold = float(dz);
-            p.normalThreshold = float(dn);
+            p.depthThreshold = dz;
+            p.normalThreshold = dn;
             p.catmullRom = catmullRom;
-            const auto ref = reprojref::reproject(in, p);
-            EXPECT_TRUE(sameBits(h.out("color"), ref.color))
-                << dz << " " << dn << " " << catmullRom;
-            EXPECT_TRUE(sameBits(h.out("moments"), ref.moments)) << dz << " " << dn;
-            EXPECT_TRUE(sameBits(h.out("historyLength"), ref.historyLength)) << dz << " " << dn;
+            expectEquivalent(f, {}, p, 2, "thresholds");
         }
 }
