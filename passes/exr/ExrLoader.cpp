@@ -365,7 +365,6 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
             if (!layer)
                 throw Error("layout blender: " + firstPath +
                             " has no '<layer>.Combined.R' channel (not a Cycles multilayer EXR)");
-            plan_ = planBlender(sets, *layer);
             note("Blender view layer '" + *layer + "'");
             // camera.json: the parameter, else beside the frames, else one folder up.
             fs::path cam = cameraParam_;
@@ -380,8 +379,9 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
             } else if (!fs::exists(cam, ec)) {
                 throw Error("camera file " + cam.string() + " not found");
             }
-            if (!cam.empty()) {
-                cameras_ = std::make_unique<BlenderCameras>(cam);
+            if (!cam.empty()) cameras_ = std::make_unique<BlenderCameras>(cam);
+            plan_ = planBlender(sets, *layer, cameras_ != nullptr);
+            if (cameras_) {
                 note("cameras from " + cam.string());
             } else {
                 note("no camera.json beside the frames or one folder up: no camera matrices");
@@ -404,6 +404,7 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
     planAntiAliasing(probed.get(), overridden);
     colorHalf_ = colorStoredAsHalf(probed.get(), first);
     if (!overridden.count("position")) planPositionFromDepth(probed.get());
+    if (!overridden.count("normal")) planNormalFromDepth(probed.get());
     if (!overridden.count("motion")) planSkyMotion();
     note(std::string("layout ") + layoutName(plan_.layout) + " (" + firstPath + ")");
     for (const auto& r : plan_.recipes)
@@ -505,20 +506,21 @@ void ExrLoader::planSkyMotion() {
     motion.why += "; on the background from the cameras' rotation";
 }
 
+bool ExrLoader::hasCamera(const ExrInput* first) const {
+    if (cameras_) return true;  // camera.json (Blender)
+    if (plan_.layout != Layout::Canonical || !first) return false;
+    const Imf::Header& h = first->header();
+    return h.findTypedAttribute<Imf::M44fAttribute>("kestrel.worldToPixel") &&
+           h.findTypedAttribute<Imf::M44fAttribute>("kestrel.worldToCamera");
+}
+
 void ExrLoader::planPositionFromDepth(const ExrInput* first) {
     Recipe& position = *plan_.find("position");
     const Recipe& depth = *plan_.find("depth");
     // A render without the Position pass (Blender's usual set-up: Z or Denoising Data only)
     // would otherwise leave a graph without motion vectors no way to reproject but the
     // identity. The camera: camera.json (Blender) or the canonical file's matrices.
-    auto canonicalCamera = [&] {
-        if (plan_.layout != Layout::Canonical || !first) return false;
-        const Imf::Header& h = first->header();
-        return h.findTypedAttribute<Imf::M44fAttribute>("kestrel.worldToPixel") &&
-               h.findTypedAttribute<Imf::M44fAttribute>("kestrel.worldToCamera");
-    };
-    if (!position.absent || depth.absent || !depth.isDirect() || !(cameras_ || canonicalCamera()))
-        return;
+    if (!position.absent || depth.absent || !depth.isDirect() || !hasCamera(first)) return;
     position.terms = {{{depth.terms[0][0][0]}}};
     position.fromDepth = true;
     position.rayLength = depth.zeroIsBackground;  // Denoising Depth: distance along the ray
@@ -526,6 +528,50 @@ void ExrLoader::planPositionFromDepth(const ExrInput* first) {
     position.why = "unprojected from " + depth.terms[0][0][0].str() + " with " +
                    (cameras_ ? cameras_->path().filename().string() : "the file's camera") +
                    " (no position channels)";
+}
+
+void ExrLoader::planNormalFromDepth(const ExrInput* first) {
+    Recipe& normal = *plan_.find("normal");
+    const Recipe& depth = *plan_.find("depth");
+    // A render with neither Normal nor Denoising Normal (Blender: Combined and Z only) would
+    // leave every edge-stopping filter without its normal term; geometric normals from the
+    // depth keep the filters from blurring across creases.
+    if (!normal.absent || depth.absent || !depth.isDirect() || !hasCamera(first)) return;
+    const std::string missing = normal.why;
+    normal.terms = {{{depth.terms[0][0][0]}}};
+    normal.fromDepth = true;
+    normal.rayLength = depth.zeroIsBackground;  // Denoising Depth: distance along the ray
+    normal.cameraSpace = normal.zeroIsBackground = false;
+    normal.absent = false;
+    normal.why = "reconstructed from " + depth.terms[0][0][0].str() + " with " +
+                 (cameras_ ? cameras_->path().filename().string() : "the file's camera") +
+                 " (geometric normals, no bump or smoothing; " + missing + ")";
+}
+
+void ExrLoader::normalsFromDepth(FrameContext& ctx, const float* depth, bool rayLength,
+                                 const ImageView& out, int W, int H) const {
+    const size_t N = size_t(W) * size_t(H);
+    std::optional<Mat4> cameraToWorld;
+    if (ctx.scene && ctx.scene->hasCamera) cameraToWorld = inverse(ctx.scene->worldToCamera);
+    if (!cameraToWorld) {  // this frame has no camera: no normals (as the background)
+        for (int c = 0; c < 3; ++c) fillPlane(asFloats(out, c), N, 0.f);
+        return;
+    }
+    // Positions of the whole frame first (a transient 12 B/px, only on renders without a
+    // normal pass): each pixel's normal reads its neighbours'.
+    std::vector<float> pos(3 * N);
+    const std::array<float*, 3> p = {pos.data(), pos.data() + N, pos.data() + 2 * N};
+    const Mat4 cameraToPixel = ctx.scene->worldToPixel * *cameraToWorld;
+    ctx.parallelRows(H, [&](int y0, int y1) {
+        unprojectRows(cameraToPixel, *cameraToWorld, depth, rayLength, p, W, y0, y1);
+    });
+    const auto& M = cameraToWorld->m;
+    const double eye[3] = {M[0][3], M[1][3], M[2][3]};
+    ctx.parallelRows(H, [&](int y0, int y1) {
+        normalsFromPositionsRows({p[0], p[1], p[2]}, depth, eye,
+                                 {asFloats(out, 0), asFloats(out, 1), asFloats(out, 2)}, W, H, y0,
+                                 y1);
+    });
 }
 
 void ExrLoader::planAntiAliasing(ExrInput* first, const std::set<std::string>& overridden) {
@@ -789,8 +835,13 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
         });
     }
     // Positions unprojected from raw depth (before depth's own background convention).
-    for (const Recipe* r : derived)
-        unprojectDepth(ctx, dest[r->terms[0][0][0]], r->rayLength, io.output(r->output), W, H);
+    for (const Recipe* r : derived) {
+        const float* depth = dest[r->terms[0][0][0]];
+        if (r->output == "normal")
+            normalsFromDepth(ctx, depth, r->rayLength, io.output(r->output), W, H);
+        else
+            unprojectDepth(ctx, depth, r->rayLength, io.output(r->output), W, H);
+    }
 
     // Convention fixes, in place: scales (motion y), background depth, then ids to int32.
     for (const Recipe* r : active) {

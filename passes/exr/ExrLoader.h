@@ -54,10 +54,16 @@ private:
     void planSkyMotion();
     void skyMotion(FrameContext& ctx, const float* depth, const ImageView& motion, int W,
                    int H) const;
+    /// Whether the frames come with a camera: camera.json, or the canonical file's matrices.
+    bool hasCamera(const ExrInput* first) const;
     /// position from depth and the camera where the render has no position channels.
     void planPositionFromDepth(const ExrInput* first);
     void unprojectDepth(FrameContext& ctx, const float* depth, bool rayLength, const ImageView& out,
                         int W, int H) const;
+    /// normal reconstructed from depth and the camera where the render has no normal pass.
+    void planNormalFromDepth(const ExrInput* first);
+    void normalsFromDepth(FrameContext& ctx, const float* depth, bool rayLength,
+                          const ImageView& out, int W, int H) const;
     std::optional<float> statedFilterWidth(const ExrInput* first) const;
     /// Whether the colour's channels are half in the first frame (GAMES202: its beauty file).
     bool colorStoredAsHalf(const ExrInput* first, int64_t frame) const;

@@ -93,3 +93,53 @@ TEST(Unproject, SkyMotionFollowsTheCameraRotation) {
     EXPECT_EQ(mx[surface], 0.25f);
     EXPECT_EQ(my[surface], 0.f);
 }
+
+// Normals from positions: a plane facing the camera at planar depth 5 (left half) and a floor
+// seen from above it (right half, a depth edge between them): each pixel gets its own plane's
+// normal, turned to the eye, also beside the edge (the neighbour closer in depth is used);
+// background stays 0.
+TEST(Unproject, NormalsFromPositionsFollowEachPlaneUpToTheDepthEdge) {
+    const Mat4 c2w = cameraToWorld(0.0, {0.f, 1.f, 0.f});
+    std::vector<float> depth(size_t(W) * H);
+    std::vector<float> p[3], n[3];
+    for (auto& v : p) v.resize(depth.size());
+    for (auto& v : n) v.resize(depth.size());
+    const Mat4 c2p = cameraToPixel();
+    // Right half: the floor y = 0 (1 below the eye) where a ray goes down, else background.
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            const size_t i = size_t(y) * W + size_t(x);
+            if (x < W / 2) {
+                depth[i] = 5.f;
+                continue;
+            }
+            // Planar depth of the floor on this pixel's ray: the camera-space ray (u, v, -1)
+            // meets y_cam = -1 at depth 1 / -v.
+            const double v = -((y + 0.5) - H / 2.0) / (H / 2.0) / (1.0 / std::tan(kPi / 6.0));
+            depth[i] = v < -1e-3 ? float(1.0 / -v) : 1e10f;
+        }
+    exr::unprojectRows(c2p, c2w, depth.data(), false, {p[0].data(), p[1].data(), p[2].data()}, W, 0,
+                       H);
+    const double eye[3] = {0, 1, 0};
+    exr::normalsFromPositionsRows({p[0].data(), p[1].data(), p[2].data()}, depth.data(), eye,
+                                  {n[0].data(), n[1].data(), n[2].data()}, W, H, 0, H);
+    int wall = 0, floor = 0, background = 0;
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            const size_t i = size_t(y) * W + size_t(x);
+            const float nx = n[0][i], ny = n[1][i], nz = n[2][i];
+            if (depth[i] >= 1e9f) {
+                EXPECT_EQ(nx * nx + ny * ny + nz * nz, 0.f) << x << "," << y;
+                ++background;
+            } else if (x < W / 2) {  // the wall faces the camera: +z (the camera looks down -z)
+                EXPECT_NEAR(nz, 1.f, 1e-4) << x << "," << y;
+                ++wall;
+            } else {  // the floor faces up
+                EXPECT_NEAR(ny, 1.f, 1e-3) << x << "," << y;
+                ++floor;
+            }
+        }
+    EXPECT_EQ(wall, W / 2 * H);
+    EXPECT_GT(floor, W / 2 * H / 3);
+    EXPECT_GT(background, 0);
+}
