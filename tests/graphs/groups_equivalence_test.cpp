@@ -221,7 +221,7 @@ TEST(ShippedGroups, BitIdenticalOnBlenderSequences) {
 /// last kept iteration feeding what the cut ones fed: the chain the iterations parameter asks for,
 /// written out by hand.
 fs::path flatWithIterations(int keep) {
-    json g = json::parse(std::ifstream(flat("svgf-notaa.json")));
+    json g = json::parse(std::ifstream(flat("svgf.json")));
     const std::regex iteration(R"(^(\w+)_atrous(\d)$)");
     auto cut = [&](const std::string& pass) {
         std::smatch m;
@@ -265,7 +265,7 @@ TEST(ShippedGroups, IterationsParameterRunsExactlyThatManyIterations) {
     const fs::path cutFlat = flatWithIterations(2);
     const Outputs fast = run(shipped("svgf-fast.json"), input, 1, 4);
     const Outputs expected = run(cutFlat, input, 1, 4);
-    const Outputs full = run(shipped("svgf-notaa.json"), input, 1, 4);
+    const Outputs full = run(shipped("svgf.json"), input, 1, 4);
     fs::remove(cutFlat);
     ASSERT_TRUE(fast.error.empty()) << fast.error;
     ASSERT_EQ(fast.frames.size(), expected.frames.size());
