@@ -189,12 +189,17 @@ ParamValues checkParams(const PassDesc& desc, const nlohmann::json& params, cons
             case ParamType::Enum: {
                 std::string choices;
                 for (const auto& c : pd->choices) choices += (choices.empty() ? "" : "|") + c;
-                if (!val.is_string() || std::find(pd->choices.begin(), pd->choices.end(),
-                                                  val.get<std::string>()) == pd->choices.end()) {
+                // A choice spelled as a JSON scalar (--set 'input.antiAliased=true' parses as
+                // the boolean) is the same choice.
+                const std::string text = val.is_string() ? val.get<std::string>()
+                                         : val.is_boolean() || val.is_number() ? val.dump()
+                                                                               : std::string();
+                if (text.empty() ||
+                    std::find(pd->choices.begin(), pd->choices.end(), text) == pd->choices.end()) {
                     diags.push_back({where, "expected one of " + choices + ", got " + val.dump()});
                     continue;
                 }
-                values[key] = val.get<std::string>();
+                values[key] = text;
                 break;
             }
         }

@@ -579,8 +579,11 @@ void ExrLoader::planAntiAliasing(ExrInput* first, const std::set<std::string>& o
         antiAliasing_ = {antiAliasedParam_ == "true", "antiAliased parameter " + antiAliasedParam_};
     } else {
         const auto stated = statedFilterWidth(first);
-        antiAliasing_ =
-            decideAntiAliasing(stated, stated ? std::nullopt : measureDepthJitter(first));
+        if (!stated && plan_.layout == Layout::Blender)
+            antiAliasing_ = assumeBlenderDefaultFilter();
+        else
+            antiAliasing_ =
+                decideAntiAliasing(stated, stated ? std::nullopt : measureDepthJitter(first));
     }
     const AntiAliasing& aa = antiAliasing_;
     for (const auto& o : loaderOutputs()) {

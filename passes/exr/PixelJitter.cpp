@@ -33,6 +33,16 @@ float depthJitterScore(const float* depth, int w, int h) {
     return *mid;
 }
 
+AntiAliasing assumeBlenderDefaultFilter() {
+    char why[320];
+    std::snprintf(why, sizeof why,
+                  "anti-aliased render assumed: Blender's default %g px pixel filter (no "
+                  "camera.json states the filter, and Cycles' depth pass cannot tell); set "
+                  "input.antiAliased=false for a render with a pixel filter of 1 px or less",
+                  double(kBlenderDefaultFilterWidth));
+    return {true, why};
+}
+
 AntiAliasing decideAntiAliasing(std::optional<float> stated, std::optional<float> score) {
     char why[160];
     if (stated) {

@@ -84,7 +84,8 @@ public:
             .paramFloat("alpha", 0.5, 0.0, 1.0, "unused weight")
             .paramInt("count", 1, 1, 10, "unused count")
             .paramBool("enabled", true, "unused flag")
-            .paramEnum("mode", "box", {"box", "gauss"}, "unused choice");
+            .paramEnum("mode", "box", {"box", "gauss"}, "unused choice")
+            .paramEnum("tristate", "auto", {"auto", "true", "false"}, "unused three-way choice");
     }
     explicit AddOnePass(const ParamValues&) {}
     void execute(FrameContext&, PassIO& io) override {

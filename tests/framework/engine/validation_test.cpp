@@ -167,6 +167,23 @@ TEST(Validation, ParameterTypeAndRange) {
     EXPECT_EQ(d.size(), 6u) << dump(d);
 }
 
+// A choice spelled as a JSON scalar is that choice (--set 'input.antiAliased=true' parses the
+// value as the boolean); a scalar that is no choice is still an error.
+TEST(Validation, EnumChoiceSpelledAsAScalar) {
+    Registry r = testRegistry();
+    EXPECT_NO_THROW(compileText(R"({"kestrel": 1, "name": "ok",
+        "passes": [{"name": "src", "type": "Const"},
+                   {"name": "a", "type": "AddOne", "params": {"tristate": true}}],
+        "edges": [{"from": "src.out", "to": "a.in"}], "outputs": ["a.out"]})",
+                                r));
+    auto d = errorsOf(R"({"kestrel": 1, "passes": [
+        {"name": "src", "type": "Const"},
+        {"name": "a", "type": "AddOne", "params": {"mode": true, "tristate": 1}}],
+        "edges": [{"from": "src.out", "to": "a.in"}]})");
+    EXPECT_TRUE(hasDiag(d, "passes[1].params.mode", {"box|gauss", "got true"})) << dump(d);
+    EXPECT_TRUE(hasDiag(d, "passes[1].params.tristate", {"auto|true|false", "got 1"})) << dump(d);
+}
+
 TEST(Validation, UnknownParameterSuggestsNearest) {
     auto d = errorsOf(
         R"({"kestrel": 1, "passes": [{"name": "src", "type": "Const", "params": {"valeu": 2}}]})");

@@ -108,6 +108,28 @@ TEST(PixelJitter, LoaderOffersJitteredAlbedoOnlyForAntiAliasedRenders) {
     EXPECT_EQ(rc.facts["antiAliased"], "false");
 }
 
+// A Blender render that states no pixel filter (no camera.json) is taken to use Blender's
+// default 1.5 px filter: Cycles writes centred depth with any filter, so the measure cannot
+// tell, and users who render for denoising keep the default. The parameter still decides.
+TEST(PixelJitter, BlenderWithoutAStatedFilterAssumesBlendersDefault) {
+    TempDir tmp("jitter-blender");
+    Channels ch;
+    const auto depth = planeDepth(0.f);
+    for (const char* c : {"R", "G", "B", "A"})
+        ch[std::string("ViewLayer.Combined.") + c].assign(depth.size(), 0.5f);
+    for (const char* c : {"R", "G", "B"})
+        ch[std::string("ViewLayer.Denoising Albedo.") + c].assign(depth.size(), 0.25f);
+    ch["ViewLayer.Depth.Z"] = depth;
+    auto rc = resolveLoader(tmp, ch, nullptr);
+    EXPECT_EQ(rc.facts["antiAliased"], "true");
+    EXPECT_EQ(rc.absent.count("jitteredAlbedo"), 0u);
+    EXPECT_TRUE(std::any_of(rc.notes.begin(), rc.notes.end(), [](const std::string& n) {
+        return n.find("Blender's default 1.5 px pixel filter") != std::string::npos;
+    }));
+    rc = resolveLoader(tmp, ch, nullptr, "false");
+    EXPECT_EQ(rc.facts["antiAliased"], "false");
+}
+
 // The diffuse/specular split's albedos are averaged like the single albedo: each jittered*
 // output is present exactly where its albedo is and the render is anti-aliased.
 TEST(PixelJitter, SplitAlbedosFollowTheSameDecision) {
