@@ -178,19 +178,20 @@ struct Builder {
         }
         r.why = s;
     }
-    /// The first of `layers` the file has (its index), else absent naming the first layer and
-    /// Blender's UI path that enables it ("View Layer > Passes > <uiPath>"); -1 when absent.
+    /// The first of `layers` the file has (its index), else absent naming the first layer (of
+    /// `named`, when given) and Blender's UI path that enables it ("View Layer > Passes >
+    /// <uiPath>"); -1 when absent.
     int setFirst(const std::string& output, const std::vector<std::string>& layers,
-                 const std::string& uiPath) {
+                 const std::string& uiPath, std::vector<std::string> named = {}) {
         for (size_t i = 0; i < layers.size(); ++i)
             if (resolveGroup(files, "", layers[i], width(*plan.find(output)))) {
                 set(output, {{layers[i]}});
                 return int(i);
             }
-        std::string missing = "channel " + groupHint(layers.front(), width(*plan.find(output)));
-        for (size_t i = 1; i < layers.size(); ++i)
-            missing += (i == 1 ? " (nor " : ", ") + layers[i];
-        if (layers.size() > 1) missing += ")";
+        if (named.empty()) named = layers;  // the order the message names them in
+        std::string missing = "channel " + groupHint(named.front(), width(*plan.find(output)));
+        for (size_t i = 1; i < named.size(); ++i) missing += (i == 1 ? " (nor " : ", ") + named[i];
+        if (named.size() > 1) missing += ")";
         describe(*plan.find(output), missing + ": enable View Layer > Passes > " + uiPath);
         return -1;
     }
@@ -225,7 +226,7 @@ Plan planCanonical(const ChannelSets& files) {
     return b.plan;
 }
 
-Plan planBlender(const ChannelSets& files, const std::string& L, bool worldCamera) {
+Plan planBlender(const ChannelSets& files, const std::string& L) {
     Builder b(Layout::Blender, files);
     auto has = [&](const std::string& pass) {
         return resolveGroup(files, "", L + "." + pass, 3).has_value();
@@ -259,13 +260,13 @@ Plan planBlender(const ChannelSets& files, const std::string& L, bool worldCamer
     b.set("specularAlbedo", {{P("GlossCol")}});
     // Cycles' Denoising Normal passes through mirrors and glass to the surface they show, so a
     // reflection is filtered within the edges of what it reflects; the Normal pass gives the
-    // mirror's own, flat normal there (blender-street 31.62 -> 34.59 dB, blender-street-defaults
-    // 30.71 -> 32.11, the sample room unchanged). It is in camera space: preferred only where
-    // camera.json turns it into world space, else a turning camera would change every normal.
-    const std::vector<std::string> normals =
-        worldCamera ? std::vector<std::string>{P("Denoising Normal"), P("Normal")}
-                    : std::vector<std::string>{P("Normal"), P("Denoising Normal")};
-    if (b.setFirst("normal", normals, "Data > Normal") == (worldCamera ? 0 : 1))
+    // mirror's own, flat normal there (svgf.json frames 5-12: blender-street 31.62 -> 34.59 dB,
+    // blender-street-defaults 30.71 -> 32.11, the sample room unchanged). It is in camera space,
+    // turned to world space where camera.json gives the camera; without one it stays in camera
+    // space, which only a turn of more than ~9 degrees per frame would make Reprojection's
+    // normal test reject (still 31.62 -> 34.55 and 30.66 -> 31.94 dB there).
+    if (b.setFirst("normal", {P("Denoising Normal"), P("Normal")}, "Data > Normal",
+                   {P("Normal"), P("Denoising Normal")}) == 0)
         b.plan.find("normal")->cameraSpace = true;  // Cycles writes its features in camera space
     // Planar depth, 1e10 on the background already; else the denoiser's ray-path length, 0 on
     // the background: a depth guide of its own kind (not planar), consistent frame to frame.

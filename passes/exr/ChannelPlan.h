@@ -80,9 +80,7 @@ const char* jitteredOf(std::string_view output);
 
 Plan planCanonical(const ChannelSets& files);
 /// `layer`: the Blender view layer ("ViewLayer"), found by blenderLayer().
-/// worldCamera: the frames have a camera (camera.json) that turns Cycles' camera-space Denoising
-/// Normal into world space; the loader then prefers it to the Normal pass.
-Plan planBlender(const ChannelSets& files, const std::string& layer, bool worldCamera = false);
+Plan planBlender(const ChannelSets& files, const std::string& layer);
 Plan planGames202(const ChannelSets& files);
 /// The view layer holding "<layer>.Combined.R", or nullopt.
 std::optional<std::string> blenderLayer(const std::set<std::string>& channels);

@@ -380,7 +380,7 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
                 throw Error("camera file " + cam.string() + " not found");
             }
             if (!cam.empty()) cameras_ = std::make_unique<BlenderCameras>(cam);
-            plan_ = planBlender(sets, *layer, cameras_ != nullptr);
+            plan_ = planBlender(sets, *layer);
             if (cameras_) {
                 note("cameras from " + cam.string());
             } else {
