@@ -333,6 +333,13 @@ private:
             if (c_.edge(nd.inEdge[size_t(p)]).history) return true;  // settled after resolve
             return c_.sourceOf(n_, p).has_value();
         }
+        std::string unboundReason(std::string_view input) const override {
+            const int p = port(input, PortKind::Input);
+            if (c_.node(n_).inEdge[size_t(p)] < 0) return "not connected";
+            std::string root;
+            if (c_.sourceOf(n_, p, nullptr, nullptr, &root)) return {};
+            return root;
+        }
         void forward(std::string_view output, std::string_view input) override {
             int o = port(output, PortKind::Output), i = port(input, PortKind::Input);
             if (!isBound(input))

@@ -20,7 +20,16 @@ void SelectPass::resolve(ResolveContext& rc) {
         rc.forward("output", "fallback");
         rc.note("'preferred' is not produced for this scene: using 'fallback'");
     } else {
-        rc.setAbsent("output", "neither 'preferred' nor 'fallback' is produced for this scene");
+        // Name what each branch lacks (a missing channel and how to enable it), once where
+        // both lack the same.
+        const std::string a = rc.unboundReason("preferred"), b = rc.unboundReason("fallback");
+        std::string why = "neither 'preferred' nor 'fallback' is produced for this scene";
+        if (a == b && !a.empty())
+            why += ": " + a;
+        else if (!a.empty() || !b.empty())
+            why += ": 'preferred': " + (a.empty() ? "unbound" : a) +
+                   "; 'fallback': " + (b.empty() ? "unbound" : b);
+        rc.setAbsent("output", why);
     }
 }
 

@@ -318,6 +318,31 @@ TEST(SvgfAdapts, SceneWithoutMotionOrPositionReprojectsFromDepth) {
     EXPECT_LT(fromDepth.mean(1), 0.9 * identity.mean(1));
 }
 
+// A render without depth cannot run svgf.json (every chain's filters need it): the one error
+// line names the missing channel, through the Select that found neither chain, not only that
+// the output cannot be produced.
+TEST(SvgfAdapts, SceneWithoutDepthIsRefusedNamingTheChannel) {
+    auto opt = baseScene();
+    opt.frames = 2;
+    opt.omit = {"depth"};
+    const fs::path scene = makeScene("no-depth", opt);
+    GraphDesc g = loadGraphFile(fs::path(KESTREL_SOURCE_DIR) / "graphs" / "svgf.json");
+    applyOverride(g,
+                  "input.path=" + nlohmann::json((scene / "noisy/frame_####.exr").string()).dump());
+    testutil::markWriterInput(g);
+    CompileOptions copt;
+    copt.firstFrame = 1;
+    try {
+        compileGraph(g, testutil::builtPlugins(), copt);
+        ADD_FAILURE() << "compiled without depth";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("input.depth is absent (layout canonical has no "
+                                             "channel depth"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
 // A render without a normal pass (Blender: Combined and Z only): the loader reconstructs
 // geometric normals from the depth and the camera, and svgf.json runs as with the pass (it
 // used to be refused: no normal, no chain). Against the same filter without its normal term

@@ -76,6 +76,10 @@ public:
     virtual ~ResolveContext() = default;
     /// Whether an input is connected to a producer that will exist.
     virtual bool isBound(std::string_view input) const = 0;
+    /// Why an input is not bound: where the missing data comes from (a source's absent output
+    /// and its reason, e.g. the loader's missing channel), for a pass's own absent reasons;
+    /// empty when it is bound.
+    virtual std::string unboundReason(std::string_view /*input*/) const { return {}; }
     /// Declare that `output` is exactly `input` (identity). Consumers are rewired to the
     /// input's producer; when every used output is forwarded the pass is left out.
     virtual void forward(std::string_view output, std::string_view input) = 0;
