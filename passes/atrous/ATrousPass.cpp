@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <cstdlib>
 #include <numeric>
 #include <vector>
 
@@ -167,7 +168,7 @@ bool filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATro
     const VF kc = hn::Set(d, kH[2] * kH[2]);
     // Pre-scaled so a tap's exponent is one multiply-add: e = |dz| / denomZ' + |dl| * nInvL,
     // with denomZ' = -ln2 (sigma_z |grad z . d| + eps) and nInvL = -log2(e) / (sigma_l ...).
-    VF cz[K], cl[K], cgx[K], cgy[K], nInvL[K], cnx[K], cny[K], cnz[K], epsZ[K];
+    VF cz[K], cl[K], cgx[K], cgy[K], nInvL[K], cnx[K], cny[K], cnz[K], epsZ[K], qz[K];
     VI cid[K];
     VF aw[K], ar[K], ag[K], ab[K], av[K];
     MF clean = hn::FirstN(d, n);
@@ -186,8 +187,13 @@ bool filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATro
         cny[k] = load(P[NY], ok, centreIn);
         cnz[k] = load(P[NZ], ok, centreIn);
         cid[k] = kId ? loadId(ok, centreIn) : hn::Zero(di);
-        epsZ[k] = hn::Mul(hn::MulAdd(hn::Set(d, kEpsZRel), cz[k], hn::Set(d, kEpsZAbs)),
-                          hn::Set(d, -kLn2));
+        // Quantised depth (relative step r = depthPrecision, 0 for float) misestimates the
+        // slope by up to r z per pixel and each depth by r z: the tolerance grows by both
+        // (r z per pixel of tap distance, pre-scaled like sigmaZ, and r z in epsZ).
+        epsZ[k] = hn::Mul(
+            hn::MulAdd(hn::Set(d, kEpsZRel + s.depthPrecision), cz[k], hn::Set(d, kEpsZAbs)),
+            hn::Set(d, -kLn2));
+        qz[k] = hn::Mul(hn::Set(d, -kLn2 * s.sigmaZ * s.depthPrecision), cz[k]);
         aw[k] = kc;
         const VF r = load(P[R], ok, centreIn), g = load(P[G], ok, centreIn),
                  b = load(P[B], ok, centreIn);
@@ -312,6 +318,7 @@ bool filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATro
         for (int i = 0; i < (j == 2 ? 2 : 5); ++i) {
             const int dx = (i - 2) * s.step;
             const VF fdx = hn::Set(d, float(dx));
+            const VF tapDistance = hn::Set(d, float(std::abs(dx) + std::abs(dy)));
             const VF kh = hn::Set(d, kH[i] * kH[j]);
             const ptrdiff_t off = ptrdiff_t(dy) * rowStride + dx;
 #pragma GCC unroll 4
@@ -319,8 +326,8 @@ bool filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATro
                 // The depth reciprocal is the hardware estimate refined by one Newton step
                 // (relative error ~1e-7; a division is exact to 6e-8 and costs several times
                 // as much).
-                const VF denomZ =
-                    hn::MulAdd(sigmaZ, hn::Abs(hn::MulAdd(cgx[k], fdx, gy[k])), epsZ[k]);
+                const VF denomZ = hn::MulAdd(sigmaZ, hn::Abs(hn::MulAdd(cgx[k], fdx, gy[k])),
+                                             hn::MulAdd(qz[k], tapDistance, epsZ[k]));
                 const VF r0 = hn::ApproximateReciprocal(denomZ);
                 const VF rz = hn::Mul(r0, hn::NegMulAdd(denomZ, r0, two));
                 const ptrdiff_t ck = centre + ptrdiff_t(k * n);
@@ -624,6 +631,10 @@ ATrousPass::ATrousPass(const ParamValues& p) {
 }
 
 void ATrousPass::resolve(ResolveContext& rc) {
+    if (const auto r = rc.fact(kDepthPrecisionFact)) {
+        s_.depthPrecision = std::clamp(std::strtof(r->c_str(), nullptr), 0.f, 1.f);
+        rc.note("depth stored with a relative step of " + *r + ": depth tolerance widened");
+    }
     if (skipped_) {  // beyond the chain's iteration count: an identity, left out by the compiler
         rc.forward("color", "color");
         if (rc.isBound("variance")) rc.forward("variance", "variance");
@@ -640,8 +651,9 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
         return;
     }
     const Bindings b(io);
-    const reference::ATrousInputs in{&b.color, b.var,     &b.depth,  &b.normal, b.idView,
-                                     s_.step,  s_.sigmaZ, s_.sigmaN, s_.sigmaL, s_.sigmaColor};
+    const reference::ATrousInputs in{&b.color,  b.var,         &b.depth,         &b.normal,
+                                     b.idView,  s_.step,       s_.sigmaZ,        s_.sigmaN,
+                                     s_.sigmaL, s_.sigmaColor, s_.depthPrecision};
     ctx.parallelRows(ctx.extent.height,
                      [&](int y0, int y1) { reference::atrous(in, b.outColor, b.outVar, y0, y1); });
 }

@@ -13,11 +13,11 @@ public:
     struct Settings {
         int step = 1;
         float sigmaZ = 1.f, sigmaN = 128.f, sigmaL = 4.f, sigmaColor = 0.6f;
+        float depthPrecision = 0.f;  ///< relative step of the stored depth (kDepthPrecisionFact)
     };
 
 private:
     Settings s_;
     bool exact_ = false;
     bool skipped_ = false;  // iteration >= iterations: passes its input through
-
 };

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 
 namespace kestrel::reference {
 
@@ -15,6 +16,7 @@ struct ATrousInputs {
     const ImageView *color, *var, *depth, *normal, *ids;  ///< var and ids may be null
     int step = 1;
     float sigmaZ = 1.f, sigmaN = 128.f, sigmaL = 4.f, sigmaColor = 0.6f;
+    float depthPrecision = 0.f;  ///< relative step r of the stored depth (0: float)
 };
 
 /// Rows [y0, y1) of the output (outVar may be null).
@@ -62,9 +64,13 @@ inline void atrous(const ATrousInputs& in, const ImageView& outColor, const Imag
                         if (in.sigmaN > 0.f && !(dot > 0.f)) continue;
                         const float wn =
                             in.sigmaN > 0.f ? std::pow(std::min(dot, 1.f), in.sigmaN) : 1.f;
+                        // Quantised depth (r z steps) misestimates the slope by up to r z per
+                        // pixel and each depth by r z: the tolerance grows by both.
+                        const float qz = in.depthPrecision * zp;
                         const float ez = std::fabs(zp - z(xq, yq)) /
-                                         (in.sigmaZ * std::fabs(gx * float(dx) + gy * float(dy)) +
-                                          1e-5f * zp + 1e-8f);
+                                         (in.sigmaZ * (std::fabs(gx * float(dx) + gy * float(dy)) +
+                                                       qz * float(std::abs(dx) + std::abs(dy))) +
+                                          (1e-5f + in.depthPrecision) * zp + 1e-8f);
                         const float el = std::fabs(lp - lum(xq, yq)) / sigmaLum;
                         wt *= std::exp(-(ez + el)) * wn;
                     }

@@ -402,7 +402,8 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
     std::set<std::string> overridden;
     if (!channelsParam_.empty()) overridden = applyChannelOverrides(plan_, channelsParam_, sets);
     planAntiAliasing(probed.get(), overridden);
-    colorHalf_ = colorStoredAsHalf(probed.get(), first);
+    colorHalf_ = storedAsHalf("color", probed.get(), first);
+    depthHalf_ = storedAsHalf("depth", probed.get(), first);
     if (!overridden.count("position")) planPositionFromDepth(probed.get());
     if (!overridden.count("normal")) planNormalFromDepth(probed.get());
     if (!overridden.count("motion")) planSkyMotion();
@@ -412,10 +413,11 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
     planned_ = true;
 }
 
-bool ExrLoader::colorStoredAsHalf(const ExrInput* first, int64_t frame) const {
-    const Recipe* color = plan_.find("color");
-    if (!color || color->absent) return false;
-    const auto refs = color->channels();
+bool ExrLoader::storedAsHalf(const std::string& output, const ExrInput* first,
+                             int64_t frame) const {
+    const Recipe* recipe = plan_.find(output);
+    if (!recipe || recipe->absent) return false;
+    const auto refs = recipe->channels();
     if (refs.empty()) return false;
     std::map<std::string, std::unique_ptr<ExrInput>> opened;  // GAMES202: each role file once
     for (const auto& ref : refs) {
@@ -618,6 +620,10 @@ void ExrLoader::resolve(ResolveContext& rc) {
     // The precision the colour arrives in: a writer with pixelType auto keeps it (a noise-free
     // float sky written as half loses up to 2^-11 of its value, more than 1 spp's error there).
     rc.setFact("colorPixelType", colorHalf_ ? "half" : "float");
+    // Depth stored as half (Blender's default "Float (Half)" EXR) steps by up to 2^-10 of its
+    // value: edge-stopping filters widen their depth tolerance by that much
+    // (kestrel::kDepthPrecisionFact).
+    if (depthHalf_) rc.setFact(kDepthPrecisionFact, "0.0009765625");
     for (const auto& r : plan_.recipes)
         if (r.absent) rc.setAbsent(r.output, r.why);
 }

@@ -65,8 +65,8 @@ private:
     void normalsFromDepth(FrameContext& ctx, const float* depth, bool rayLength,
                           const ImageView& out, int W, int H) const;
     std::optional<float> statedFilterWidth(const ExrInput* first) const;
-    /// Whether the colour's channels are half in the first frame (GAMES202: its beauty file).
-    bool colorStoredAsHalf(const ExrInput* first, int64_t frame) const;
+    /// Whether every channel an output reads is half in the first frame (GAMES202: its file).
+    bool storedAsHalf(const std::string& output, const ExrInput* first, int64_t frame) const;
     std::optional<float> measureDepthJitter(ExrInput* first) const;
 
     /// Decoded file channels of one frame, read ahead on a background thread while the graph
@@ -94,6 +94,7 @@ private:
     std::unique_ptr<BlenderCameras> cameras_;
     bool games202Matrices_ = false;
     bool colorHalf_ = false;  // every channel of the colour is stored as half
+    bool depthHalf_ = false;  // the depth channel is stored as half
 
     // this frame's open files (headers read in beginFrame / on first use)
     int64_t frame_ = 0;

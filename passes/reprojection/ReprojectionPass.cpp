@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <map>
@@ -86,6 +87,7 @@ inline void catmullRomWeights(float t, float w[4]) {
 struct GeomRows {
     const float* z[3];
     const float* n[3][3];
+    float depthStep;  ///< relative step r of the stored depth (kDepthPrecisionFact; 0: float)
 };
 
 // Screen-space derivatives (one-sided, edge-preserving: px::minAbsDiff) of pixel x, as
@@ -113,7 +115,9 @@ __attribute__((always_inline)) inline void derivativesAt(const GeomRows& g, int 
     n1[x] = nc[1];
     n2[x] = nc[2];
     const float fwN = std::sqrt(dnx2) + std::sqrt(dny2);
-    invZ[x] = 1.f / (fwZ + 1e-2f);
+    // Depth stored with relative step r (half: 2^-10) differs from last frame's by up to two
+    // steps where nothing moved: the tolerance grows by 2 r z (r = 0 adds exactly nothing).
+    invZ[x] = 1.f / (fwZ + 2.f * g.depthStep * zc + 1e-2f);
     invN[x] = 1.f / (fwN + 1e-2f);
 }
 
@@ -503,7 +507,7 @@ thread_local Scratch tScratch;
 
 /// The pass for this target (the `filter` and threshold parameters as arguments).
 void reproject(FrameContext& ctx, PassIO& io, bool catmullRom_, float depthThreshold_,
-               float normalThreshold_) {
+               float normalThreshold_, float depthPrecision_) {
     const int w = ctx.extent.width, h = ctx.extent.height;
     const ImageView* outC = io.hasOutput("color") ? &io.output("color") : nullptr;
     const ImageView* outM = io.hasOutput("moments") ? &io.output("moments") : nullptr;
@@ -606,6 +610,7 @@ void reproject(FrameContext& ctx, PassIO& io, bool catmullRom_, float depthThres
             const int yu = u ? y - 1 : y, yd = d ? y + 1 : y;  // absent neighbours are not used
             if (d) sanitizeGeom(y + 1);
             GeomRows g;
+            g.depthStep = depthPrecision_;
             for (int j = 0; j < 3; ++j) {
                 const int yy = j == 0 ? y : j == 1 ? yu : yd;
                 g.z[j] = geomSlot(yy, 0);
@@ -834,6 +839,10 @@ ReprojectionPass::ReprojectionPass(const ParamValues& p)
 void ReprojectionPass::resolve(ResolveContext& rc) {
     if (!rc.isBound("prevColor")) rc.setAbsent("color", "prevColor is not connected");
     if (!rc.isBound("prevMoments")) rc.setAbsent("moments", "prevMoments is not connected");
+    if (const auto r = rc.fact(kDepthPrecisionFact)) {
+        depthPrecision_ = std::clamp(std::strtof(r->c_str(), nullptr), 0.f, 1.f);
+        rc.note("depth stored with a relative step of " + *r + ": depth test widened");
+    }
     if (rc.isBound("motion")) {
         rc.note("reprojecting with motion vectors");
         // World positions serve only the matrix path: not read, so the loader skips them.
@@ -845,6 +854,7 @@ void ReprojectionPass::resolve(ResolveContext& rc) {
 }
 
 void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
-    HWY_DYNAMIC_DISPATCH(reproject)(ctx, io, catmullRom_, depthThreshold_, normalThreshold_);
+    HWY_DYNAMIC_DISPATCH(reproject)
+    (ctx, io, catmullRom_, depthThreshold_, normalThreshold_, depthPrecision_);
 }
 #endif  // HWY_ONCE

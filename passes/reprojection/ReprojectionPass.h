@@ -17,4 +17,5 @@ public:
 private:
     bool catmullRom_;
     float depthThreshold_, normalThreshold_;
+    float depthPrecision_ = 0.f;  ///< relative step of the stored depth (kDepthPrecisionFact)
 };

@@ -24,4 +24,9 @@ constexpr int32_t kBackgroundId = -1;
 //                     seen at pixel centre (i+0.5, j+0.5) was at (i+0.5+mx, j+0.5+my) in frame t-1
 //   objectId (Int32)  object id, kBackgroundId on background
 
+/// Scene fact a source states when its depth is quantised (stored as half): the relative step
+/// of the stored depth (a decimal, "0.0009765625" = 2^-10 for half). Passes that compare depths
+/// widen their tolerance by it; absent means full float precision.
+inline constexpr const char* kDepthPrecisionFact = "depthPrecision";
+
 }  // namespace kestrel

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <limits>
 
+#include "../FactResolve.h"
 #include "../SvgfTestImages.h"
 #include "ATrousPass.h"
 #include "HwyTargets.h"
@@ -31,8 +32,13 @@ struct Scene {
 };
 
 PassHarness runATrous(const Scene& s, std::map<std::string, ParamValue> params = {},
-                      int threads = 1, bool bindVar = true, bool bindId = true) {
+                      int threads = 1, bool bindVar = true, bool bindId = true,
+                      float depthPrecision = 0.f) {
     auto h = PassHarness::make<ATrousPass>(s.color.extent(), params, threads);
+    if (depthPrecision > 0.f) {  // the loader's fact for depth stored as half
+        svgftest::FactResolve facts(kDepthPrecisionFact, std::to_string(depthPrecision));
+        h.pass().resolve(facts);
+    }
     h.bind("color", s.color);
     if (bindVar)
         h.bind("variance", s.var);
@@ -227,6 +233,39 @@ TEST_P(ATrousEveryTarget, NonFiniteInputsGiveFiniteOutputs) {
     EXPECT_TRUE(allFinite(noVar.out("color")));
 }
 
+// A gentle slope whose depth is stored as half (steps of 0.0625 at 100: flat runs of six pixels,
+// then a jump) reads as a stack of depth edges to the plain tolerance, which stops the filter at
+// every step; with the loader's depthPrecision fact the filter averages across them.
+TEST(ATrous, HalfDepthStepsOnASlopeAreNotEdges) {
+    const int w = 64, h = 16;
+    auto noise = [](int x, int y) {
+        uint32_t v = uint32_t(x) * 73856093u ^ uint32_t(y) * 19349663u;
+        v ^= v >> 13;
+        v *= 0x5bd1e995u;
+        v ^= v >> 15;
+        return float(v & 0xffff) / 65535.f - 0.5f;
+    };
+    Scene s{grey(w, h, [&](int x, int y) { return 0.5f + 0.5f * noise(x, y); }),
+            scalar(w, h, [](int, int) { return 1.f; }),  // a luminance weight near 1
+            scalar(w, h,
+                   [](int x, int y) {
+                       return std::round((100.f + 0.01f * float(x + y)) / 0.0625f) * 0.0625f;
+                   }),
+            normals(w, h, 0, 0, 1), ids(w, h, [](int, int) { return 1; })};
+    auto residual = [&](const PassHarness& r) {
+        double e = 0;
+        for (int y = 4; y < h - 4; ++y)
+            for (int x = 8; x < w - 8; ++x) e += std::fabs(r.out("color").at(0, x, y) - 0.5f);
+        return e / double((h - 8) * (w - 16));
+    };
+    const double plain = residual(runATrous(s, {{"step", int64_t(2)}})),
+                 half =
+                     residual(runATrous(s, {{"step", int64_t(2)}}, 1, true, true, 0.0009765625f));
+    std::printf("mean |error| after one step-2 iteration: plain %.4f, half-depth aware %.4f\n",
+                plain, half);
+    EXPECT_LT(half, 0.85 * plain);  // measured 0.0400 against 0.0506
+}
+
 TEST(ATrous, IdenticalWithOneAndTwoThreads) {
     const int w = 67, h = 150;  // several row chunks
     Scene s{
@@ -277,17 +316,19 @@ TEST(ATrous, StepLargerThanImageIsIdentity) {
 
 namespace {
 void expectATrousEquivalent(int w, int h, int step, int seed, bool extreme, int threads,
-                            float sigmaN = 128.f) {
+                            float sigmaN = 128.f, float depthPrecision = 0.f) {
     RandomGBuffer g = randomGBuffer(w, h, seed);
     Image var = scalar(w, h, [&](int x, int y) { return 0.01f + hash01(x, y, seed + 3); });
     if (extreme)
         for (Image* im : {&g.color, &g.depth, &g.normal, &var}) sprinkleExtremes(*im, seed + 11);
     Scene s{clone(g.color), clone(var), clone(g.depth), clone(g.normal), clone(g.ids)};
-    auto run = runATrous(s, {{"step", int64_t(step)}, {"sigmaN", double(sigmaN)}}, threads);
+    auto run = runATrous(s, {{"step", int64_t(step)}, {"sigmaN", double(sigmaN)}}, threads, true,
+                         true, depthPrecision);
     Image refC(g.color.extent(), Format::Float3), refV(g.color.extent(), Format::Float);
     reference::ATrousInputs in{&g.color.view(),  &var.view(),   &g.depth.view(),
                                &g.normal.view(), &g.ids.view(), step};
     in.sigmaN = sigmaN;
+    in.depthPrecision = float(std::stod(std::to_string(depthPrecision)));  // as the fact says
     reference::atrous(in, refC, &refV.view(), 0, h);
     std::string where;
     const double dc = maxScaledDiff(run.out("color"), refC, 1e-3f, &where);
@@ -310,6 +351,12 @@ TEST_P(ATrousEveryTarget, VectorisedMatchesScalarReferenceForOtherNormalExponent
     // fractional one fastLog2/fastExp2, and 0 drops the normal weight.
     for (float sigmaN : {0.f, 3.f, 10.5f, 64.f})
         for (int step : {1, 4}) expectATrousEquivalent(157, 41, step, step + 5, false, 1, sigmaN);
+}
+
+TEST_P(ATrousEveryTarget, VectorisedMatchesScalarReferenceWithHalfDepth) {
+    // The depth tolerance widened for depth stored as half (kDepthPrecisionFact).
+    for (int step : {1, 4, 16})
+        expectATrousEquivalent(157, 41, step, step + 9, false, 1, 128.f, 0.0009765625f);
 }
 
 TEST_P(ATrousEveryTarget, BandedFilteringMatchesReferenceAcrossBandSeams) {

@@ -96,6 +96,7 @@ TEST(ExrLoaderCanonical, HalfTiledPiz) {
     RecordingResolve rc(1);
     h.pass().resolve(rc);
     EXPECT_EQ(rc.facts["colorPixelType"], "half");
+    EXPECT_EQ(rc.facts.count(kestrel::kDepthPrecisionFact), 0u);  // no depth channel
     h.useOutputs({"color"});
     h.run();
     for (int y = 0; y < H; ++y)
@@ -179,4 +180,26 @@ TEST(ExrLoaderCanonical, DisplayWindowWithNonZeroOrigin) {
     h.useOutputs({"color"});
     h.run();
     EXPECT_EQ(h.out("color").at(0, 2, 1), 5.f);
+}
+
+// Depth stored as half steps by up to 2^-10 of its value: the loader states it (the fact
+// kDepthPrecisionFact), so filters that compare depths widen their tolerance; float depth
+// states nothing.
+TEST(ExrLoaderCanonical, HalfDepthIsStatedAsAFact) {
+    TempDir tmp("half-depth");
+    const int W = 8, H = 4;
+    for (auto type : {Imf::HALF, Imf::FLOAT}) {
+        Channels ch;
+        for (const char* n : {"R", "G", "B", "depth.Z"}) ch[n].assign(size_t(W) * H, 2.f);
+        WriteOptions opt;
+        opt.type = type;
+        writeExr(tmp.path / "d.exr", box(0, 0, W - 1, H - 1), ch, opt);
+        auto h = PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / "d.exr").string()}});
+        RecordingResolve rc(1);
+        h.pass().resolve(rc);
+        if (type == Imf::HALF)
+            EXPECT_EQ(rc.facts[kestrel::kDepthPrecisionFact], "0.0009765625");
+        else
+            EXPECT_EQ(rc.facts.count(kestrel::kDepthPrecisionFact), 0u);
+    }
 }

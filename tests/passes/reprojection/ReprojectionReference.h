@@ -38,6 +38,7 @@ struct Inputs {
 struct Params {
     bool catmullRom = false;
     float depthThreshold = 10.f, normalThreshold = 16.f;
+    float depthPrecision = 0.f;  ///< relative step r of the stored depth (0: float)
 };
 
 struct Outputs {
@@ -132,7 +133,8 @@ inline Outputs reproject(const Inputs& in, const Params& p) {
                 dny2 += gy * gy;
             }
             const float fwN = std::sqrt(dnx2) + std::sqrt(dny2);
-            const float invZ = 1.f / (fwZ + 1e-2f), invN = 1.f / (fwN + 1e-2f);
+            const float invZ = 1.f / (fwZ + 2.f * p.depthPrecision * zc + 1e-2f),
+                        invN = 1.f / (fwN + 1e-2f);
 
             auto consistent = [&](int tx, int ty) {
                 if (tx < 0 || ty < 0 || tx >= w || ty >= h) return false;

@@ -9,12 +9,15 @@
 #include <cstring>
 #include <limits>
 #include <map>
+#include <optional>
 #include <string>
 
+#include "../FactResolve.h"
 #include "HwyTargets.h"
 #include "ReprojectionPass.h"
 #include "ReprojectionReference.h"
 #include "ReprojectionScene.h"
+#include "kestrel/Conventions.h"
 #include "kestrel/testing/PassHarness.h"
 
 using namespace kestrel;
@@ -107,6 +110,10 @@ void expectEquivalent(const Frames& f, const Binding& b, const reprojref::Params
                  std::to_string(threads) + " thresholds " + std::to_string(p.depthThreshold) + " " +
                  std::to_string(p.normalThreshold));
     auto h = PassHarness::make<ReprojectionPass>(f.depth.extent(), passParams(p), threads);
+    if (p.depthPrecision > 0.f) {
+        svgftest::FactResolve facts(kDepthPrecisionFact, std::to_string(p.depthPrecision));
+        h.pass().resolve(facts);
+    }
     h.bind("depth", f.depth);
     h.bind("normal", f.normal);
     if (b.objectId) h.bind("objectId", f.objectId);
@@ -286,5 +293,7 @@ TEST_P(ReprojectionEquivalence, Thresholds) {
             p.normalThreshold = dn;
             p.catmullRom = catmullRom;
             expectEquivalent(f, {}, p, 2, "thresholds");
+            p.depthPrecision = 0.0009765625f;  // depth stored as half: the test widened
+            expectEquivalent(f, {}, p, 2, "thresholds, half depth");
         }
 }

@@ -2,6 +2,7 @@
 
 #include <tuple>
 
+#include "../FactResolve.h"
 #include "../SvgfTestImages.h"
 #include "ReprojectionPass.h"
 
@@ -164,6 +165,29 @@ TEST(Reprojection, WithoutGeometryTestsOnlyIdsAndScreenBoundsReject) {
     // (7, 5) -> (9, 5), another object: the 2x2 tap and most of the 3x3 fallback are rejected,
     // and the fallback's taps on object 3 are all that is averaged.
     EXPECT_NEAR(h.out("color").at(0, 7, 5), (9.f + 400.f + 8.f + 400.f + 8.f + 500.f) / 3.f, 1e-3f);
+}
+
+// Depth stored as half (the loader's depthPrecision fact, 2^-10) steps by 0.5 at 1000: a still
+// surface differs from last frame's by such a step, which the default test (10 x (fwidth +
+// 0.01) on a flat surface) took for a disocclusion; with the fact it keeps its history.
+TEST(Reprojection, HalfDepthStepsAreNotDisocclusions) {
+    Frames f;
+    f.depth = constant(W, H, Format::Float, 1000.f);
+    f.prevDepth = constant(W, H, Format::Float, 1000.5f);
+    auto plain = make(f, true);
+    plain.run();
+    EXPECT_EQ(plain.out("historyLength").at(0, 3, 2), 0.f);
+    auto half = make(f, true);
+    FactResolve facts(kDepthPrecisionFact, "0.0009765625");
+    half.pass().resolve(facts);
+    half.run();
+    EXPECT_NEAR(half.out("historyLength").at(0, 3, 2), 5.f, 1e-5f);
+    // The widened test still rejects: beyond depthThreshold (10) times 2 steps (+ 0.01) = 19.6.
+    f.prevDepth = constant(W, H, Format::Float, 1020.f);
+    auto far = make(f, true);
+    far.pass().resolve(facts);
+    far.run();
+    EXPECT_EQ(far.out("historyLength").at(0, 3, 2), 0.f);
 }
 
 TEST(Reprojection, HalfPixelMotionBlendsBilinearly) {
