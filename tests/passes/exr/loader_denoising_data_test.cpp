@@ -121,38 +121,59 @@ TEST(ExrLoaderDenoisingData, DenoisingNormalRotatedToWorldMatchesNormalPass) {
 
 namespace {
 
-/// Frame 5 of blender-street with Combined and one depth pass only (no Position, no Vector),
-/// beside its camera.json; returns the fraction of surface pixels whose loader position lies
-/// within `tolerance` times the camera distance of the Position pass's.
-double positionAgreement(const std::string& dir, const std::string& depthPass, double tolerance) {
+/// Frame 5 of blender-street with Combined and one depth pass only (no Position, Vector or
+/// normal pass) beside its camera.json, loaded for `output`: the fraction of the surface pixels
+/// of the pass `truth` (XYZ; (0, 0, 0) on the background) where agrees(loaded, true value,
+/// camera-to-world) holds.
+template <class Agrees>
+double agreement(const std::string& dir, const std::string& depthPass, const std::string& output,
+                 const std::string& truth, Agrees agrees) {
     const std::string file = dir + "/noisy/frame_0005.exr";
-    TempDir tmp("street-noposition");
-    auto h = loadStreetSubset(dir, tmp, {"Combined.RGBA", depthPass + ".Z"}, "position");
+    TempDir tmp("street-" + output + "-from-" + depthPass);
+    auto h = loadStreetSubset(dir, tmp, {"Combined.RGBA", depthPass + ".Z"}, output);
     const int w = 320, hgt = 180;
     EXPECT_TRUE(h.scene.hasCamera);
-    std::vector<float> truth[3];
-    for (int c = 0; c < 3; ++c)
-        truth[c] = readChannel(file, std::string("ViewLayer.Position.") + "XYZ"[c]);
-    const auto inv = kestrel::inverse(h.scene.worldToCamera);
-    EXPECT_TRUE(inv.has_value());
-    const float eye[3] = {inv->m[0][3], inv->m[1][3], inv->m[2][3]};
+    const auto cameraToWorld = kestrel::inverse(h.scene.worldToCamera);
+    EXPECT_TRUE(cameraToWorld.has_value());
+    std::vector<float> t[3];
+    for (int c = 0; c < 3; ++c) t[c] = readChannel(file, "ViewLayer." + truth + "." + "XYZ"[c]);
     int agree = 0, surface = 0;
     for (int y = 0; y < hgt; ++y)
         for (int x = 0; x < w; ++x) {
             const size_t i = size_t(y) * w + size_t(x);
-            double err2 = 0, dist2 = 0, len2 = 0;
-            for (int c = 0; c < 3; ++c) {
-                const double t = truth[c][i], p = h.out("position").at(c, x, y);
-                err2 += (p - t) * (p - t);
-                dist2 += (t - eye[c]) * (t - eye[c]);
-                len2 += t * t;
-            }
-            if (len2 == 0) continue;  // background: (0, 0, 0) in the Position pass
+            const double v[3] = {h.out(output).at(0, x, y), h.out(output).at(1, x, y),
+                                 h.out(output).at(2, x, y)},
+                         tv[3] = {t[0][i], t[1][i], t[2][i]};
+            if (tv[0] == 0 && tv[1] == 0 && tv[2] == 0) continue;  // background
             ++surface;
-            agree += err2 < tolerance * tolerance * dist2;
+            agree += agrees(v, tv, *cameraToWorld);
         }
     EXPECT_GT(surface, w * hgt / 3);
     return double(agree) / double(std::max(surface, 1));
+}
+
+/// The fraction of surface pixels whose position lies within `tolerance` times the camera
+/// distance of the Position pass's.
+double positionAgreement(const std::string& dir, const std::string& depthPass, double tolerance) {
+    return agreement(dir, depthPass, "position", "Position",
+                     [&](const double* p, const double* t, const kestrel::Mat4& cameraToWorld) {
+                         double err2 = 0, dist2 = 0;
+                         for (int c = 0; c < 3; ++c) {
+                             const double eye = cameraToWorld.m[c][3];
+                             err2 += (p[c] - t[c]) * (p[c] - t[c]);
+                             dist2 += (t[c] - eye) * (t[c] - eye);
+                         }
+                         return err2 < tolerance * tolerance * dist2;
+                     });
+}
+
+/// The fraction of surface pixels whose normal is within `degrees` of the Normal pass's.
+double normalAgreement(const std::string& dir, const std::string& depthPass, double degrees) {
+    const double cosTol = std::cos(degrees * M_PI / 180.0);
+    return agreement(dir, depthPass, "normal", "Normal",
+                     [&](const double* n, const double* t, const kestrel::Mat4&) {
+                         return n[0] * t[0] + n[1] * t[1] + n[2] * t[2] > cosTol;
+                     });
 }
 
 }  // namespace
@@ -176,39 +197,6 @@ TEST(ExrLoaderDenoisingData, PositionUnprojectedFromDepthMatchesThePositionPass)
     EXPECT_GT(planar, 0.99);
     EXPECT_GT(rayLength, 0.85);
 }
-
-namespace {
-
-/// Frame 5 of blender-street with Combined and one depth pass only (no Normal, no Denoising
-/// Normal); returns the fraction of the Normal pass's surface pixels whose loader normal is
-/// within `degrees` of it.
-double normalAgreement(const std::string& dir, const std::string& depthPass, double degrees) {
-    const std::string file = dir + "/noisy/frame_0005.exr";
-    TempDir tmp("street-nonormal-pass");
-    auto h = loadStreetSubset(dir, tmp, {"Combined.RGBA", depthPass + ".Z"}, "normal");
-    const int w = 320, hgt = 180;
-    std::vector<float> truth[3];
-    for (int c = 0; c < 3; ++c)
-        truth[c] = readChannel(file, std::string("ViewLayer.Normal.") + "XYZ"[c]);
-    const double cosTol = std::cos(degrees * M_PI / 180.0);
-    int agree = 0, surface = 0;
-    for (int y = 0; y < hgt; ++y)
-        for (int x = 0; x < w; ++x) {
-            const size_t i = size_t(y) * w + size_t(x);
-            double dot = 0, len2 = 0;
-            for (int c = 0; c < 3; ++c) {
-                dot += double(h.out("normal").at(c, x, y)) * truth[c][i];
-                len2 += double(truth[c][i]) * truth[c][i];
-            }
-            if (len2 < 0.5) continue;  // background
-            ++surface;
-            agree += dot > cosTol;
-        }
-    EXPECT_GT(surface, w * hgt / 3);
-    return double(agree) / double(std::max(surface, 1));
-}
-
-}  // namespace
 
 // A render with neither Normal nor Denoising Normal (Combined and a depth pass): the loader
 // reconstructs geometric normals from the depth and camera.json, so SVGF's normal term still
