@@ -21,7 +21,8 @@ constexpr int32_t kBackgroundId = -1;
 //   depth (Float)     linear view depth, kBackgroundDepth on background
 //   position (Float3) world-space position
 //   motion (Float2)   screen motion to the previous frame in pixels, x right, y DOWN: the point
-//                     seen at pixel centre (i+0.5, j+0.5) was at (i+0.5+mx, j+0.5+my) in frame t-1
+//                     seen at pixel centre (i+0.5, j+0.5) was at (i+0.5+mx, j+0.5+my) in frame t-1;
+//                     NaN where unknown (Reprojection: a disocclusion)
 //   objectId (Int32)  object id, kBackgroundId on background
 
 /// Scene fact a source states when its depth is quantised (stored as half): the relative step

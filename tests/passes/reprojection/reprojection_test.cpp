@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <tuple>
 
 #include "../FactResolve.h"
@@ -188,6 +189,17 @@ TEST(Reprojection, HalfDepthStepsAreNotDisocclusions) {
     far.pass().resolve(facts);
     far.run();
     EXPECT_EQ(far.out("historyLength").at(0, 3, 2), 0.f);
+}
+
+// Unknown motion (NaN: the loader's mark for a Blender background without camera.json) is a
+// disocclusion: no history is reused there.
+TEST(Reprojection, UnknownMotionIsADisocclusion) {
+    Frames f;
+    f.motion.at(0, 3, 2) = f.motion.at(1, 3, 2) = std::numeric_limits<float>::quiet_NaN();
+    auto h = make(f, true);
+    h.run();
+    EXPECT_EQ(h.out("historyLength").at(0, 3, 2), 0.f);
+    EXPECT_NEAR(h.out("historyLength").at(0, 4, 2), 5.f, 1e-5f);
 }
 
 TEST(Reprojection, HalfPixelMotionBlendsBilinearly) {
