@@ -272,10 +272,10 @@ Plan planBlender(const ChannelSets& files, const std::string& L) {
     // the background: a depth guide of its own kind (not planar), consistent frame to frame.
     if (b.setFirst("depth", {P("Depth"), P("Denoising Depth")}, "Data > Z") == 1)
         b.plan.find("depth")->zeroIsBackground = true;
-    b.set("position", {{P("Position")}});
-    b.set("motion", {{P("Vector")}});
+    b.setFirst("position", {P("Position")}, "Data > Position");
+    b.setFirst("motion", {P("Vector")}, "Data > Vector");
     b.plan.find("motion")->scale[1] = -1.f;  // Blender's Vector y points up the image
-    b.set("objectId", {{P("IndexOB")}});
+    b.setFirst("objectId", {P("IndexOB")}, "Data > Indexes > Object Index");
     b.plan.find("objectId")->idRule = IdRule::BlenderZeroIsBackground;
     return b.plan;
 }

@@ -89,6 +89,11 @@ TEST(ExrLoaderDenoisingData, MissingNormalIsNamedAsBlendersUiNamesIt) {
               "layout blender has no channel ViewLayer.Normal.R/G/B (nor ViewLayer.Denoising "
               "Normal): enable View Layer > Passes > Data > Normal");
     EXPECT_NE(rc.absent["albedo"].find("Light > Diffuse > Color"), std::string::npos);
+    EXPECT_NE(rc.absent["position"].find("enable View Layer > Passes > Data > Position"),
+              std::string::npos);
+    EXPECT_NE(rc.absent["motion"].find("enable View Layer > Passes > Data > Vector"),
+              std::string::npos);
+    EXPECT_NE(rc.absent["objectId"].find("Data > Indexes > Object Index"), std::string::npos);
 }
 
 // With a camera, the camera-space Denoising Normal is rotated to world space: on the real
