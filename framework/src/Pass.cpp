@@ -2,10 +2,21 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 
 #include "ParamCheck.h"
+#include "kestrel/Conventions.h"
 
 namespace kestrel {
+
+float depthPrecision(ResolveContext& rc) {
+    const auto r = rc.fact(kDepthPrecisionFact);
+    if (!r) return 0.f;
+    const float step = std::strtof(r->c_str(), nullptr);
+    const float clamped = step == step ? std::clamp(step, 0.f, 1.f) : 0.f;
+    rc.note("depth stored with a relative step of " + *r + ": depth tolerance widened");
+    return clamped;
+}
 
 PassDesc& PassDesc::input(std::string name, Format f, std::string desc) {
     ports.push_back({std::move(name), PortKind::Input, f, false, false, std::move(desc), {}});

@@ -631,10 +631,7 @@ ATrousPass::ATrousPass(const ParamValues& p) {
 }
 
 void ATrousPass::resolve(ResolveContext& rc) {
-    if (const auto r = rc.fact(kDepthPrecisionFact)) {
-        s_.depthPrecision = std::clamp(std::strtof(r->c_str(), nullptr), 0.f, 1.f);
-        rc.note("depth stored with a relative step of " + *r + ": depth tolerance widened");
-    }
+    s_.depthPrecision = depthPrecision(rc);
     if (skipped_) {  // beyond the chain's iteration count: an identity, left out by the compiler
         rc.forward("color", "color");
         if (rc.isBound("variance")) rc.forward("variance", "variance");

@@ -633,7 +633,7 @@ void ExrLoader::resolve(ResolveContext& rc) {
     // The precision the colour arrives in: a writer with pixelType auto keeps it (a noise-free
     // float sky written as half loses up to 2^-11 of its value, more than 1 spp's error there).
     rc.setFact("colorPixelType", colorHalf_ ? "half" : "float");
-    // Depth stored as half (Blender's default "Float (Half)" EXR) steps by up to 2^-10 of its
+    // Depth stored as half (Blender's "Float (Half)" EXR option) steps by up to 2^-10 of its
     // value: edge-stopping filters widen their depth tolerance by that much
     // (kestrel::kDepthPrecisionFact).
     if (depthHalf_) rc.setFact(kDepthPrecisionFact, "0.0009765625");

@@ -8,7 +8,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <map>
@@ -839,10 +838,7 @@ ReprojectionPass::ReprojectionPass(const ParamValues& p)
 void ReprojectionPass::resolve(ResolveContext& rc) {
     if (!rc.isBound("prevColor")) rc.setAbsent("color", "prevColor is not connected");
     if (!rc.isBound("prevMoments")) rc.setAbsent("moments", "prevMoments is not connected");
-    if (const auto r = rc.fact(kDepthPrecisionFact)) {
-        depthPrecision_ = std::clamp(std::strtof(r->c_str(), nullptr), 0.f, 1.f);
-        rc.note("depth stored with a relative step of " + *r + ": depth test widened");
-    }
+    depthPrecision_ = depthPrecision(rc);
     if (rc.isBound("motion")) {
         rc.note("reprojecting with motion vectors");
         // World positions serve only the matrix path: not read, so the loader skips them.

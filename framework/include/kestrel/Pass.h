@@ -125,6 +125,11 @@ public:
     virtual const ImageView& output(std::string_view name) = 0;
 };
 
+/// The relative step of the scene's stored depth (the fact kDepthPrecisionFact, clamped to
+/// [0, 1]); 0 where no source states it (float depth). Passes that compare depths widen their
+/// tolerance by it; with a note naming the step when it is stated.
+float depthPrecision(ResolveContext& rc);
+
 class Pass {
 public:
     virtual ~Pass() = default;

@@ -23,9 +23,19 @@ Imath::Box2i box2(int w, int h) {
     return Imath::Box2i({0, 0}, {w - 1, h - 1});
 }
 
+/// A 2x1 Blender frame of `ch` (Combined added) written to `tmp` with no camera.json, and a
+/// loader on it.
+PassHarness loaderOn(const TempDir& tmp, Channels ch);
+
 void addGroup(Channels& ch, const std::string& layer, const char* comps, std::vector<float> v) {
     for (int c = 0; comps[c]; ++c)
         ch["ViewLayer." + layer + "." + comps[c]].assign(2, v[size_t(c)]);
+}
+
+PassHarness loaderOn(const TempDir& tmp, Channels ch) {
+    addGroup(ch, "Combined", "RGBA", {0.5f, 0.5f, 0.5f, 1.f});
+    writeExr(tmp.path / "f.0001.exr", box2(2, 1), ch);
+    return PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / "f.####.exr").string()}});
 }
 
 /// Frame 5 of blender-street re-written with only `passes` (each "Pass.comps", e.g.
@@ -56,12 +66,10 @@ PassHarness loadStreetSubset(const std::string& dir, const TempDir& tmp,
 TEST(ExrLoaderDenoisingData, FeaturesStandInForMissingPasses) {
     TempDir tmp("denoising-data");
     Channels ch;
-    addGroup(ch, "Combined", "RGBA", {0.5f, 0.5f, 0.5f, 1.f});
     addGroup(ch, "Denoising Albedo", "RGB", {0.25f, 0.5f, 0.75f});
     addGroup(ch, "Denoising Normal", "XYZ", {0.f, 1.f, 0.f});
     ch["ViewLayer.Denoising Depth.Z"] = {7.5f, 0.f};  // pixel 1 is background
-    writeExr(tmp.path / "f.0001.exr", box2(2, 1), ch);
-    auto h = PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / "f.####.exr").string()}});
+    auto h = loaderOn(tmp, ch);
     RecordingResolve rc(1);
     h.pass().resolve(rc);
     EXPECT_EQ(rc.absent.count("albedo"), 0u);
@@ -80,9 +88,7 @@ TEST(ExrLoaderDenoisingData, FeaturesStandInForMissingPasses) {
 TEST(ExrLoaderDenoisingData, MissingNormalIsNamedAsBlendersUiNamesIt) {
     TempDir tmp("no-normal");
     Channels ch;
-    addGroup(ch, "Combined", "RGBA", {0.5f, 0.5f, 0.5f, 1.f});
-    writeExr(tmp.path / "f.0001.exr", box2(2, 1), ch);
-    auto h = PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / "f.####.exr").string()}});
+    auto h = loaderOn(tmp, ch);
     RecordingResolve rc(1);
     h.pass().resolve(rc);
     EXPECT_EQ(rc.absent["normal"],
@@ -243,11 +249,9 @@ TEST(ExrLoaderDenoisingData, DenoisingNormalPreferredToTheNormalPass) {
 TEST(ExrLoaderDenoisingData, DenoisingNormalStaysInCameraSpaceWithoutACamera) {
     TempDir tmp("both-normals-no-camera");
     Channels ch;
-    addGroup(ch, "Combined", "RGBA", {0.5f, 0.5f, 0.5f, 1.f});
     addGroup(ch, "Normal", "XYZ", {1.f, 0.f, 0.f});
     addGroup(ch, "Denoising Normal", "XYZ", {0.f, 1.f, 0.f});
-    writeExr(tmp.path / "f.0001.exr", box2(2, 1), ch);
-    auto h = PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / "f.####.exr").string()}});
+    auto h = loaderOn(tmp, ch);
     h.useOutputs({"normal"});
     h.ctx.frameNumber = 1;
     h.run();
@@ -263,11 +267,9 @@ TEST(ExrLoaderDenoisingData, DenoisingNormalStaysInCameraSpaceWithoutACamera) {
 TEST(ExrLoaderDenoisingData, BackgroundMotionIsUnknownWithoutACamera) {
     TempDir tmp("sky-no-camera");
     Channels ch;
-    addGroup(ch, "Combined", "RGBA", {0.5f, 0.5f, 0.5f, 1.f});
     addGroup(ch, "Vector", "XYZW", {0.25f, 0.5f, 0.f, 0.f});
     ch["ViewLayer.Depth.Z"] = {5.f, 1e10f};  // pixel 1 is background
-    writeExr(tmp.path / "f.0001.exr", box2(2, 1), ch);
-    auto h = PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / "f.####.exr").string()}});
+    auto h = loaderOn(tmp, ch);
     h.useOutputs({"motion"});
     h.ctx.frameNumber = 1;
     h.run();
