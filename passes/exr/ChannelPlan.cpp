@@ -19,9 +19,12 @@ const char* layoutName(Layout l) {
 
 std::vector<ChannelRef> Recipe::channels() const {
     std::vector<ChannelRef> out;
-    for (const auto& t : terms)
-        for (const auto& f : t)
-            for (const auto& c : f) out.push_back(c);
+    std::vector<const std::vector<Term>*> lists = {&terms};
+    if (rest) lists.insert(lists.end(), {&rest->color, &rest->passes});
+    for (const auto* list : lists)
+        for (const auto& t : *list)
+            for (const auto& f : t)
+                for (const auto& c : f) out.push_back(c);
     if (backgroundMask) out.push_back(*backgroundMask);
     if (skyDepth) out.push_back(*skyDepth);
     return out;
@@ -111,6 +114,29 @@ std::string groupHint(const std::string& layer, int n) {
 }
 
 /// Builds recipes with a shared "missing channel" bookkeeping.
+/// "A*B + C - D": the layers a recipe sums, multiplies and subtracts.
+std::string describeTerms(const Recipe& r) {
+    std::string s;
+    auto add = [&](const Term& t, const char* sign) {
+        if (!s.empty()) s += sign;
+        for (size_t i = 0; i < t.size(); ++i) {
+            if (i) s += "*";
+            std::string c = t[i].front().str();
+            auto dot = c.rfind('.');
+            s += t[i].size() > 1 && dot != std::string::npos ? c.substr(0, dot) : c;
+        }
+    };
+    for (const auto& t : r.terms) add(t, " + ");
+    using Part = Recipe::Rest::Part;
+    if (r.rest)
+        s += std::string(s.empty() ? "" : " + ") + "the " +
+             (r.rest->part == Part::Positive   ? "positive part of the "
+              : r.rest->part == Part::Negative ? "negative part of the "
+                                               : "") +
+             "light no split pass holds";
+    return s;
+}
+
 struct Builder {
     Plan plan;
     const ChannelSets& files;
@@ -146,6 +172,7 @@ struct Builder {
         Recipe& r = *plan.find(output);
         std::string missing;
         r.terms.clear();
+        r.rest.reset();
         for (const auto& t : terms) {
             Term term;
             for (const auto& layer : t)
@@ -158,6 +185,7 @@ struct Builder {
         if (!missing.empty()) {
             r.absent = true;
             r.terms.clear();
+            r.rest.reset();
             r.why = "layout " + std::string(layoutName(plan.layout)) + " has no " + missing;
             return;
         }
@@ -166,17 +194,7 @@ struct Builder {
             r.why = "layout " + std::string(layoutName(plan.layout)) + " provides no " + r.output;
             return;
         }
-        std::string s;
-        for (const auto& t : r.terms) {
-            if (!s.empty()) s += " + ";
-            for (size_t i = 0; i < t.size(); ++i) {
-                if (i) s += "*";
-                std::string c = t[i].front().str();
-                auto dot = c.rfind('.');
-                s += t[i].size() > 1 && dot != std::string::npos ? c.substr(0, dot) : c;
-            }
-        }
-        r.why = s;
+        r.why = describeTerms(r);
     }
     /// The first of `layers` the file has (its index), else absent naming the first layer (of
     /// `named`, when given) and Blender's UI path that enables it ("View Layer > Passes >
@@ -245,6 +263,17 @@ Plan planBlender(const ChannelSets& files, const std::string& L) {
         b.absent("emission", "channel " + P("Emit") + ".R/G/B (nor " + P("Env") + ")");
     else
         b.set("emission", emission);
+    // The specular chain filters every non-diffuse light the render splits out: glossy, and
+    // transmission (glass) and volume where the scene enables those passes.
+    std::vector<std::vector<std::string>> specular, specularAlbedo = {{P("GlossCol")}};
+    for (const char* part : {"Dir", "Ind"}) {
+        specular.push_back({P("Gloss") + part, P("GlossCol")});
+        if (has(std::string("Trans") + part) && has("TransCol"))
+            specular.push_back({P("Trans") + part, P("TransCol")});
+        if (has(std::string("Volume") + part)) specular.push_back({P("Volume") + part});
+    }
+    if (has("TransDir") && has("TransInd") && has("TransCol"))
+        specularAlbedo.push_back({P("TransCol")});
     for (const char* part : {"Dir", "Ind"}) {
         std::vector<std::vector<std::string>> terms = {{P("Diff") + part, P("DiffCol")},
                                                        {P("Gloss") + part, P("GlossCol")}};
@@ -256,8 +285,9 @@ Plan planBlender(const ChannelSets& files, const std::string& L) {
     }
     b.set("diffuse", {{P("DiffDir"), P("DiffCol")}, {P("DiffInd"), P("DiffCol")}});
     b.set("diffuseAlbedo", {{P("DiffCol")}});
-    b.set("specular", {{P("GlossDir"), P("GlossCol")}, {P("GlossInd"), P("GlossCol")}});
-    b.set("specularAlbedo", {{P("GlossCol")}});
+    b.set("specular", specular);
+    b.set("specularAlbedo", specularAlbedo);
+    addSplitRest(b.plan);
     // Cycles' Denoising Normal passes through mirrors and glass to the surface they show, so a
     // reflection is filtered within the edges of what it reflects; the Normal pass gives the
     // mirror's own, flat normal there (svgf.json frames 5-12: blender-street 31.62 -> 34.59 dB,
@@ -278,6 +308,27 @@ Plan planBlender(const ChannelSets& files, const std::string& L) {
     b.setFirst("objectId", {P("IndexOB")}, "Data > Indexes > Object Index");
     b.plan.find("objectId")->idRule = IdRule::BlenderZeroIsBackground;
     return b.plan;
+}
+
+void addSplitRest(Plan& plan, const std::set<std::string>& keep) {
+    const Recipe &color = *plan.find("color"), &diffuse = *plan.find("diffuse");
+    Recipe &specular = *plan.find("specular"), &emission = *plan.find("emission");
+    if (plan.layout != Layout::Blender || color.absent || diffuse.absent || specular.absent)
+        return;
+    Recipe::Rest rest{color.terms, diffuse.terms};
+    for (const Recipe* r : {&specular, &emission})
+        if (!r->absent) rest.passes.insert(rest.passes.end(), r->terms.begin(), r->terms.end());
+    if (!keep.count("specular")) specular.rest = rest;
+    if (!keep.count("emission")) {
+        if (emission.absent) emission.terms.clear();  // no Emit nor Env: the rest only
+        emission.absent = false;
+        emission.rest = rest;
+        // A specular the user chose takes none of the rest: emission keeps all of it.
+        emission.rest->part =
+            keep.count("specular") ? Recipe::Rest::Part::Whole : Recipe::Rest::Part::Negative;
+    }
+    for (Recipe* r : {&specular, &emission})
+        if (r->rest) r->why = describeTerms(*r);
 }
 
 Plan planGames202(const ChannelSets& files) {
@@ -320,6 +371,7 @@ std::set<std::string> applyChannelOverrides(Plan& plan, const std::string& spec,
         set.insert(out);
         int n = r->format == Format::Int32 ? 1 : channelCount(r->format);
         r->terms.clear();
+        r->rest.reset();
         r->backgroundMask.reset();
         r->skyDepth.reset();
         r->zeroIsBackground = r->cameraSpace = r->fromDepth = r->rayLength = false;

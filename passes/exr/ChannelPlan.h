@@ -36,6 +36,16 @@ struct Recipe {
     std::string output;
     Format format = Format::Float3;
     std::vector<Term> terms;
+    /// The light of Combined that no split pass holds: Combined (`color`) less every diffuse,
+    /// specular and emission term (`passes`). Blender's split adds its positive part to
+    /// specular, to be filtered (glass or fog rendered without their passes), and its negative
+    /// part to emission, kept as it was (a transparent film's sky: in Env, not in Combined).
+    struct Rest {
+        enum class Part { Positive, Negative, Whole };
+        std::vector<Term> color, passes;
+        Part part = Part::Positive;
+    };
+    std::optional<Rest> rest;
     float scale[4] = {1, 1, 1, 1};  ///< per channel after summing (Blender motion y: -1)
     float fill = 0.f;               ///< where the file has no pixel (outside the data window)
     std::optional<ChannelRef> backgroundMask;  ///< GAMES202 depth: where this < -0.5, depth = 1e10
@@ -52,7 +62,7 @@ struct Recipe {
     bool absent = false;
     std::string why;  ///< absent: which channel is missing; present: what is read (for notes)
 
-    bool isDirect() const { return terms.size() == 1 && terms[0].size() == 1; }
+    bool isDirect() const { return terms.size() == 1 && terms[0].size() == 1 && !rest; }
     std::vector<ChannelRef> channels() const;  ///< every channel read (mask included)
 };
 
@@ -82,6 +92,10 @@ Plan planCanonical(const ChannelSets& files);
 /// `layer`: the Blender view layer ("ViewLayer"), found by blenderLayer().
 Plan planBlender(const ChannelSets& files, const std::string& layer);
 Plan planGames202(const ChannelSets& files);
+/// A Blender render with the diffuse/specular split: specular and emission share the light no
+/// split pass holds (Recipe::Rest), so diffuse + specular + emission = color on every pixel.
+/// Again after the channels parameter changed one of them; `keep`: outputs it set, left alone.
+void addSplitRest(Plan& plan, const std::set<std::string>& keep = {});
 /// The view layer holding "<layer>.Combined.R", or nullopt.
 std::optional<std::string> blenderLayer(const std::set<std::string>& channels);
 

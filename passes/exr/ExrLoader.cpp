@@ -134,6 +134,37 @@ void readChannels(ExrInput& in, const Box& dp, int W, size_t N,
                 std::copy(src, src + (ix1 - ix0 + 1), dst);
             }
 }
+using Planes = std::map<ChannelRef, float*>;
+
+/// out[i - b] += sign * the product of the term's factors (channel c of each), i in [b, e).
+void addTerm(const Term& t, const Planes& dest, int c, float sign, float* out, size_t b,
+             size_t e) {
+    const float* f0 = dest.at(t[0][size_t(c)]);
+    if (t.size() == 1) {
+        for (size_t i = b; i < e; ++i) out[i - b] += sign * f0[i];
+        return;
+    }
+    const float* f1 = dest.at(t[1][size_t(c)]);
+    for (size_t i = b; i < e; ++i) {
+        float v = f0[i] * f1[i];
+        for (size_t k = 2; k < t.size(); ++k) v *= dest.at(t[k][size_t(c)])[i];
+        out[i - b] += sign * v;
+    }
+}
+
+/// out[i - b] += the part of color - passes that `rest` names (Recipe::Rest).
+void addRest(const Recipe::Rest& rest, const Planes& dest, int c, float* out, size_t b,
+             size_t e) {
+    std::vector<float> v(e - b, 0.f);
+    for (const Term& t : rest.color) addTerm(t, dest, c, 1.f, v.data(), b, e);
+    for (const Term& t : rest.passes) addTerm(t, dest, c, -1.f, v.data(), b, e);
+    using Part = Recipe::Rest::Part;
+    for (size_t i = 0; i < v.size(); ++i)
+        out[i] += rest.part == Part::Positive   ? std::max(v[i], 0.f)
+                  : rest.part == Part::Negative ? std::min(v[i], 0.f)
+                                                : v[i];
+}
+
 }  // namespace
 
 PassDesc ExrLoader::describe() {
@@ -402,6 +433,11 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
     }
     std::set<std::string> overridden;
     if (!channelsParam_.empty()) overridden = applyChannelOverrides(plan_, channelsParam_, sets);
+    for (const char* o : {"color", "diffuse", "specular", "emission"})
+        if (overridden.count(o)) {
+            addSplitRest(plan_, overridden);
+            break;
+        }
     planAntiAliasing(probed.get(), overridden);
     colorHalf_ = storedAsHalf("color", probed.get(), first);
     depthHalf_ = storedAsHalf("depth", probed.get(), first);
@@ -840,19 +876,8 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
             for (int c = 0; c < C; ++c) {
                 float* o = asFloats(out, c);
                 std::fill(o + b, o + e, 0.f);
-                for (const Term& t : r->terms) {
-                    const float* f0 = dest[t[0][size_t(c)]];
-                    if (t.size() == 1) {
-                        for (size_t i = b; i < e; ++i) o[i] += f0[i];
-                    } else {
-                        const float* f1 = dest[t[1][size_t(c)]];
-                        for (size_t i = b; i < e; ++i) {
-                            float v = f0[i] * f1[i];
-                            for (size_t k = 2; k < t.size(); ++k) v *= dest[t[k][size_t(c)]][i];
-                            o[i] += v;
-                        }
-                    }
-                }
+                for (const Term& t : r->terms) addTerm(t, dest, c, 1.f, o + b, b, e);
+                if (r->rest) addRest(*r->rest, dest, c, o + b, b, e);
             }
         });
     }

@@ -1,0 +1,103 @@
+// The Blender diffuse/specular split loses no light: Combined may hold light that no enabled
+// pass does (glass without the Transmission passes, fog without the Volume passes), or less than
+// the passes (a transparent film's sky is in Env, not in Combined). The loader gives the rest to
+// specular (filtered) or emission (kept as it was), so diffuse + specular + emission = Combined
+// on every pixel and no graph drops or adds light.
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include "ExrLoader.h"
+#include "exr_test_util.h"
+#include "kestrel/testing/PassHarness.h"
+
+using kestrel::exr::ExrLoader;
+using kestrel::testing::PassHarness;
+using namespace exrtest;
+
+namespace {
+
+/// A 3x1 Blender frame, grey per pass (one value per pixel, the same in R, G and B):
+///   pixel 0: an opaque surface (diffuse, glossy and a little emission),
+///   pixel 1: glass rendered without the Transmission passes (0.4 in Combined only),
+///   pixel 2: a transparent film's sky (Env 0.7, Combined 0, no surface).
+Channels threePixels() {
+    Channels ch;
+    auto grey = [&](const std::string& pass, std::vector<float> v) {
+        for (const char* c : {"R", "G", "B"}) ch["ViewLayer." + pass + "." + c] = v;
+    };
+    grey("DiffDir", {0.3f, 0.f, 0.f});
+    grey("DiffInd", {0.1f, 0.f, 0.f});
+    grey("DiffCol", {0.5f, 0.f, 0.f});
+    grey("GlossDir", {0.2f, 0.1f, 0.f});
+    grey("GlossInd", {0.f, 0.1f, 0.f});
+    grey("GlossCol", {1.f, 0.8f, 0.f});
+    grey("Emit", {0.05f, 0.f, 0.f});
+    grey("Env", {0.f, 0.f, 0.7f});
+    // Combined = 0.4*0.5 + 0.2*1 + 0.05; 0.2*0.8 + 0.4; 0 (transparent).
+    grey("Combined", {0.45f, 0.56f, 0.f});
+    ch["ViewLayer.Combined.A"] = {1.f, 1.f, 0.f};
+    return ch;
+}
+
+PassHarness loadFrame(const TempDir& tmp, const Channels& ch, const std::string& channels = {}) {
+    writeExr(tmp.path / "f.0001.exr", Imath::Box2i({0, 0}, {2, 0}), ch);
+    std::map<std::string, kestrel::ParamValue> params = {
+        {"path", (tmp.path / "f.####.exr").string()}};
+    if (!channels.empty()) params["channels"] = channels;
+    auto h = PassHarness::make<ExrLoader>({1, 1}, params);
+    h.useOutputs({"color", "diffuse", "specular", "specularAlbedo", "emission"});
+    h.ctx.frameNumber = 1;
+    h.run();
+    return h;
+}
+
+void expectSplitSumsToCombined(PassHarness& h) {
+    for (int x = 0; x < 3; ++x)
+        for (int c = 0; c < 3; ++c) {
+            const float sum = h.out("diffuse").at(c, x, 0) + h.out("specular").at(c, x, 0) +
+                              h.out("emission").at(c, x, 0);
+            EXPECT_NEAR(sum, h.out("color").at(c, x, 0), 1e-6f) << "pixel " << x << " channel " << c;
+        }
+}
+
+}  // namespace
+
+TEST(ExrLoaderSplit, LightNoPassHoldsIsFilteredAsSpecular) {
+    TempDir tmp("split-rest");
+    auto h = loadFrame(tmp, threePixels());
+    expectSplitSumsToCombined(h);
+    EXPECT_NEAR(h.out("specular").at(0, 0, 0), 0.2f, 1e-6f);       // glossy only
+    EXPECT_NEAR(h.out("emission").at(0, 0, 0), 0.05f, 1e-6f);      // Emit
+    EXPECT_NEAR(h.out("specular").at(0, 1, 0), 0.16f + 0.4f, 1e-6f);  // glossy + the glass
+    EXPECT_NEAR(h.out("emission").at(0, 1, 0), 0.f, 1e-6f);
+    EXPECT_NEAR(h.out("specular").at(0, 2, 0), 0.f, 1e-6f);  // never negative light to filter
+    EXPECT_NEAR(h.out("emission").at(0, 2, 0), 0.f, 1e-6f);  // Env less what Combined lacks
+}
+
+TEST(ExrLoaderSplit, TransmissionPassesJoinTheSpecularChain) {
+    TempDir tmp("split-trans");
+    Channels ch = threePixels();
+    for (const char* c : {"R", "G", "B"}) {
+        ch[std::string("ViewLayer.TransDir.") + c] = {0.f, 0.3f, 0.f};
+        ch[std::string("ViewLayer.TransInd.") + c] = {0.f, 0.2f, 0.f};
+        ch[std::string("ViewLayer.TransCol.") + c] = {0.f, 0.8f, 0.f};
+    }
+    auto h = loadFrame(tmp, ch);
+    expectSplitSumsToCombined(h);
+    EXPECT_NEAR(h.out("specular").at(0, 1, 0), 0.16f + 0.4f, 1e-6f);
+    // Demodulated by both colours: (0.2*0.8 + 0.5*0.8) / (0.8 + 0.8) is the glass's lighting.
+    EXPECT_NEAR(h.out("specularAlbedo").at(0, 1, 0), 1.6f, 1e-6f);
+    EXPECT_NEAR(h.out("specularAlbedo").at(0, 0, 0), 1.f, 1e-6f);
+}
+
+TEST(ExrLoaderSplit, ChannelsParameterKeepsTheSumWhole) {
+    TempDir tmp("split-override");
+    // Only the direct glossy light filtered as specular, as the user chose: the indirect and
+    // the glass are added back unfiltered.
+    auto h = loadFrame(tmp, threePixels(), "specular=ViewLayer.GlossDir*ViewLayer.GlossCol");
+    expectSplitSumsToCombined(h);
+    EXPECT_NEAR(h.out("specular").at(0, 1, 0), 0.08f, 1e-6f);
+    EXPECT_NEAR(h.out("emission").at(0, 1, 0), 0.08f + 0.4f, 1e-6f);
+}
