@@ -12,7 +12,7 @@ namespace kestrel::reference {
 
 struct VarianceInputs {
     const ImageView *color, *moments, *length, *var, *depth, *normal, *ids;  ///< ids may be null
-    float sigmaZ = 1.f, sigmaN = 128.f, sigmaL = 10.f, minHistory = 4.f;
+    float sigmaZ = 1.f, sigmaN = 128.f, sigmaL = 0.f, minHistory = 4.f;  // sigmaL 0: none
 };
 
 /// Rows [y0, y1) of the output (outVar may be null).
@@ -46,11 +46,13 @@ inline void varianceEstimation(const VarianceInputs& in, const ImageView& outCol
                     float wt = 1.f;
                     if (i != 0 || j != 0) {
                         if (in.ids && in.ids->atInt(xq, yq) != idp) continue;
-                        // SVGF eq. 3 (depth), eq. 4 (normal), luminance with the fixed sigmaL.
+                        // SVGF eq. 3 (depth), eq. 4 (normal), luminance with the fixed sigmaL
+                        // (absolute units; 0: no luminance term).
                         const float ez = std::fabs(zp - z(xq, yq)) /
                                          (in.sigmaZ * std::fabs(gx * float(i) + gy * float(j)) +
                                           1e-5f * zp + 1e-8f);
-                        const float el = std::fabs(lp - lum(xq, yq)) / in.sigmaL;
+                        const float el =
+                            in.sigmaL > 0.f ? std::fabs(lp - lum(xq, yq)) / in.sigmaL : 0.f;
                         float wn = 1.f;
                         if (in.sigmaN > 0.f) {
                             const float dot = nrm(0, x, y) * nrm(0, xq, yq) +
