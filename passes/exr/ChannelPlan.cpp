@@ -20,7 +20,8 @@ const char* layoutName(Layout l) {
 std::vector<ChannelRef> Recipe::channels() const {
     std::vector<ChannelRef> out;
     std::vector<const std::vector<Term>*> lists = {&terms};
-    if (rest) lists.insert(lists.end(), {&rest->color, &rest->passes});
+    if (!cap.empty()) lists.push_back(&cap);
+    if (rest) lists.insert(lists.end(), {&rest->color, &rest->passes, &rest->emission});
     for (const auto* list : lists)
         for (const auto& t : *list)
             for (const auto& f : t)
@@ -127,12 +128,10 @@ std::string describeTerms(const Recipe& r) {
         }
     };
     for (const auto& t : r.terms) add(t, " + ");
-    using Part = Recipe::Rest::Part;
+    if (!r.cap.empty()) s = "min(" + s + ", Combined)";
     if (r.rest)
         s += std::string(s.empty() ? "" : " + ") + "the " +
-             (r.rest->part == Part::Positive   ? "positive part of the "
-              : r.rest->part == Part::Negative ? "negative part of the "
-                                               : "") +
+             (r.rest->part == Recipe::Rest::Part::Positive ? "positive part of the " : "") +
              "light no split pass holds";
     return s;
 }
@@ -172,6 +171,7 @@ struct Builder {
         Recipe& r = *plan.find(output);
         std::string missing;
         r.terms.clear();
+        r.cap.clear();
         r.rest.reset();
         for (const auto& t : terms) {
             Term term;
@@ -185,6 +185,7 @@ struct Builder {
         if (!missing.empty()) {
             r.absent = true;
             r.terms.clear();
+            r.cap.clear();
             r.rest.reset();
             r.why = "layout " + std::string(layoutName(plan.layout)) + " has no " + missing;
             return;
@@ -263,6 +264,10 @@ Plan planBlender(const ChannelSets& files, const std::string& L) {
         b.absent("emission", "channel " + P("Emit") + ".R/G/B (nor " + P("Env") + ")");
     else
         b.set("emission", emission);
+    if (Recipe& e = *b.plan.find("emission"); !e.absent) {
+        e.cap = b.plan.find("color")->terms;
+        e.why = describeTerms(e);
+    }
     // The specular chain filters every non-diffuse light the render splits out: glossy, and
     // transmission (glass) and volume where the scene enables those passes.
     std::vector<std::vector<std::string>> specular, specularAlbedo = {{P("GlossCol")}};
@@ -315,20 +320,19 @@ void addSplitRest(Plan& plan, const std::set<std::string>& keep) {
     Recipe &specular = *plan.find("specular"), &emission = *plan.find("emission");
     if (plan.layout != Layout::Blender || color.absent || diffuse.absent || specular.absent)
         return;
-    Recipe::Rest rest{color.terms, diffuse.terms};
-    for (const Recipe* r : {&specular, &emission})
-        if (!r->absent) rest.passes.insert(rest.passes.end(), r->terms.begin(), r->terms.end());
-    if (!keep.count("specular")) specular.rest = rest;
-    if (!keep.count("emission")) {
-        if (emission.absent) emission.terms.clear();  // no Emit nor Env: the rest only
+    Recipe::Rest rest{color.terms, diffuse.terms, {}};
+    rest.passes.insert(rest.passes.end(), specular.terms.begin(), specular.terms.end());
+    if (!emission.absent) rest.emission = emission.terms;
+    if (!keep.count("specular")) {
+        specular.rest = rest;
+        specular.why = describeTerms(specular);
+    } else if (!keep.count("emission")) {
+        // The user's specular takes none of the rest: emission keeps all of it, unfiltered.
         emission.absent = false;
         emission.rest = rest;
-        // A specular the user chose takes none of the rest: emission keeps all of it.
-        emission.rest->part =
-            keep.count("specular") ? Recipe::Rest::Part::Whole : Recipe::Rest::Part::Negative;
+        emission.rest->part = Recipe::Rest::Part::Whole;
+        emission.why = describeTerms(emission);
     }
-    for (Recipe* r : {&specular, &emission})
-        if (r->rest) r->why = describeTerms(*r);
 }
 
 Plan planGames202(const ChannelSets& files) {
@@ -371,6 +375,7 @@ std::set<std::string> applyChannelOverrides(Plan& plan, const std::string& spec,
         set.insert(out);
         int n = r->format == Format::Int32 ? 1 : channelCount(r->format);
         r->terms.clear();
+        r->cap.clear();
         r->rest.reset();
         r->backgroundMask.reset();
         r->skyDepth.reset();

@@ -36,13 +36,17 @@ struct Recipe {
     std::string output;
     Format format = Format::Float3;
     std::vector<Term> terms;
-    /// The light of Combined that no split pass holds: Combined (`color`) less every diffuse,
-    /// specular and emission term (`passes`). Blender's split adds its positive part to
-    /// specular, to be filtered (glass or fog rendered without their passes), and its negative
-    /// part to emission, kept as it was (a transparent film's sky: in Env, not in Combined).
+    /// Per channel the output is at most these terms' sum: Blender's emission is at most
+    /// Combined (with a transparent film the sky is in Env, not in Combined).
+    std::vector<Term> cap;
+    /// The light of Combined that no split pass holds: Combined (`color`) less the diffuse and
+    /// specular terms (`passes`) and the emission (`emission`, at most Combined). Blender's
+    /// split adds its positive part to specular, to be filtered (glass or fog rendered without
+    /// their passes, a sky without the Environment pass); where the channels parameter sets
+    /// specular, emission takes all of it, kept as it was.
     struct Rest {
-        enum class Part { Positive, Negative, Whole };
-        std::vector<Term> color, passes;
+        enum class Part { Positive, Whole };
+        std::vector<Term> color, passes, emission;
         Part part = Part::Positive;
     };
     std::optional<Rest> rest;
@@ -62,7 +66,9 @@ struct Recipe {
     bool absent = false;
     std::string why;  ///< absent: which channel is missing; present: what is read (for notes)
 
-    bool isDirect() const { return terms.size() == 1 && terms[0].size() == 1 && !rest; }
+    bool isDirect() const {
+        return terms.size() == 1 && terms[0].size() == 1 && cap.empty() && !rest;
+    }
     std::vector<ChannelRef> channels() const;  ///< every channel read (mask included)
 };
 
@@ -92,9 +98,10 @@ Plan planCanonical(const ChannelSets& files);
 /// `layer`: the Blender view layer ("ViewLayer"), found by blenderLayer().
 Plan planBlender(const ChannelSets& files, const std::string& layer);
 Plan planGames202(const ChannelSets& files);
-/// A Blender render with the diffuse/specular split: specular and emission share the light no
-/// split pass holds (Recipe::Rest), so diffuse + specular + emission = color on every pixel.
-/// Again after the channels parameter changed one of them; `keep`: outputs it set, left alone.
+/// A Blender render with the diffuse/specular split: specular (or, where the channels parameter
+/// set specular, emission) takes the light no split pass holds (Recipe::Rest), so diffuse +
+/// specular + emission = color on every pixel. Again after the channels parameter changed one
+/// of them; `keep`: outputs it set, left alone.
 void addSplitRest(Plan& plan, const std::set<std::string>& keep = {});
 /// The view layer holding "<layer>.Combined.R", or nullopt.
 std::optional<std::string> blenderLayer(const std::set<std::string>& channels);

@@ -152,17 +152,27 @@ void addTerm(const Term& t, const Planes& dest, int c, float sign, float* out, s
     }
 }
 
-/// out[i - b] += the part of color - passes that `rest` names (Recipe::Rest).
+/// out[i - b] = min(out[i - b], the sum of `cap`) (Recipe::cap).
+void applyCap(const std::vector<Term>& cap, const Planes& dest, int c, float* out, size_t b,
+              size_t e) {
+    std::vector<float> v(e - b, 0.f);
+    for (const Term& t : cap) addTerm(t, dest, c, 1.f, v.data(), b, e);
+    for (size_t i = 0; i < v.size(); ++i) out[i] = std::min(out[i], v[i]);
+}
+
+/// out[i - b] += the part of color - passes - min(emission, color) that `rest` names
+/// (Recipe::Rest).
 void addRest(const Recipe::Rest& rest, const Planes& dest, int c, float* out, size_t b,
              size_t e) {
-    std::vector<float> v(e - b, 0.f);
-    for (const Term& t : rest.color) addTerm(t, dest, c, 1.f, v.data(), b, e);
+    std::vector<float> color(e - b, 0.f), v(e - b, 0.f), emission(e - b, 0.f);
+    for (const Term& t : rest.color) addTerm(t, dest, c, 1.f, color.data(), b, e);
     for (const Term& t : rest.passes) addTerm(t, dest, c, -1.f, v.data(), b, e);
-    using Part = Recipe::Rest::Part;
-    for (size_t i = 0; i < v.size(); ++i)
-        out[i] += rest.part == Part::Positive   ? std::max(v[i], 0.f)
-                  : rest.part == Part::Negative ? std::min(v[i], 0.f)
-                                                : v[i];
+    for (const Term& t : rest.emission) addTerm(t, dest, c, 1.f, emission.data(), b, e);
+    const bool positive = rest.part == Recipe::Rest::Part::Positive;
+    for (size_t i = 0; i < v.size(); ++i) {
+        const float r = color[i] + v[i] - std::min(emission[i], color[i]);
+        out[i] += positive ? std::max(r, 0.f) : r;
+    }
 }
 
 }  // namespace
@@ -877,6 +887,7 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
                 float* o = asFloats(out, c);
                 std::fill(o + b, o + e, 0.f);
                 for (const Term& t : r->terms) addTerm(t, dest, c, 1.f, o + b, b, e);
+                if (!r->cap.empty()) applyCap(r->cap, dest, c, o + b, b, e);
                 if (r->rest) addRest(*r->rest, dest, c, o + b, b, e);
             }
         });

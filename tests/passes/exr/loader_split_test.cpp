@@ -103,8 +103,9 @@ TEST(ExrLoaderSplit, ChannelsParameterKeepsTheSumWhole) {
 }
 
 // Diffuse and Glossy passes without Emission and Environment: the sky and the emitters are in
-// Combined only. Emission used to be absent there, so svgf.json added nothing back and the sky
-// came out black (blender-street without Emit and Env: 8.18 dB against 15.18 at 1 spp).
+// Combined only, and svgf.json added nothing back for them: the sky came out black
+// (blender-street without Emit and Env: 8.18 dB against 15.18 at 1 spp). They now join the
+// specular light, filtered as radiance where GlossCol is 0.
 TEST(ExrLoaderSplit, SplitWithoutEmitOrEnvKeepsTheSky) {
     TempDir tmp("split-no-emit");
     Channels ch = threePixels();
@@ -116,8 +117,25 @@ TEST(ExrLoaderSplit, SplitWithoutEmitOrEnvKeepsTheSky) {
     auto h = loadFrame(tmp, ch);
     RecordingResolve rc(1);
     h.pass().resolve(rc);
-    EXPECT_EQ(rc.absent.count("emission"), 0u);
+    EXPECT_EQ(rc.absent.count("emission"), 1u);  // the harness gives 0 for it
     expectSplitSumsToCombined(h);
     EXPECT_NEAR(h.out("specular").at(0, 2, 0), 0.7f, 1e-6f);  // filtered as radiance
     EXPECT_NEAR(h.out("specular").at(0, 0, 0), 0.25f, 1e-6f);  // glossy + the emitter
+}
+
+// A graph that filters the colour without the split (games202-jbf: colour minus emission) reads
+// Combined, Emit and Env only: the emission's cap needs no split pass.
+TEST(ExrLoaderSplit, EmissionAloneReadsNoSplitPass) {
+    TempDir tmp("split-emission-only");
+    writeExr(tmp.path / "f.0001.exr", Imath::Box2i({0, 0}, {2, 0}), threePixels());
+    auto h = PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / "f.####.exr").string()}});
+    h.useOutputs({"color", "emission"});
+    h.ctx.frameNumber = 1;
+    h.run();
+    EXPECT_NEAR(h.out("emission").at(0, 0, 0), 0.05f, 1e-6f);
+    EXPECT_NEAR(h.out("emission").at(0, 2, 0), 0.f, 1e-6f);  // min(Env, Combined)
+    const auto read = static_cast<ExrLoader&>(h.pass()).channelsRead();
+    EXPECT_EQ(read.size(), 9u);  // Combined, Emit, Env
+    for (const auto& c : read) EXPECT_EQ(c.find("Diff"), std::string::npos) << c;
+    for (const auto& c : read) EXPECT_EQ(c.find("Gloss"), std::string::npos) << c;
 }
