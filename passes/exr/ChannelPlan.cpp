@@ -318,8 +318,7 @@ Plan planBlender(const ChannelSets& files, const std::string& L) {
 void addSplitRest(Plan& plan, const std::set<std::string>& keep) {
     const Recipe &color = *plan.find("color"), &diffuse = *plan.find("diffuse");
     Recipe &specular = *plan.find("specular"), &emission = *plan.find("emission");
-    if (plan.layout != Layout::Blender || color.absent || diffuse.absent || specular.absent)
-        return;
+    if (plan.layout != Layout::Blender || color.absent || diffuse.absent || specular.absent) return;
     Recipe::Rest rest{color.terms, diffuse.terms, {}};
     rest.passes.insert(rest.passes.end(), specular.terms.begin(), specular.terms.end());
     if (!emission.absent) rest.emission = emission.terms;

@@ -137,8 +137,7 @@ void readChannels(ExrInput& in, const Box& dp, int W, size_t N,
 using Planes = std::map<ChannelRef, float*>;
 
 /// out[i - b] += sign * the product of the term's factors (channel c of each), i in [b, e).
-void addTerm(const Term& t, const Planes& dest, int c, float sign, float* out, size_t b,
-             size_t e) {
+void addTerm(const Term& t, const Planes& dest, int c, float sign, float* out, size_t b, size_t e) {
     const float* f0 = dest.at(t[0][size_t(c)]);
     if (t.size() == 1) {
         for (size_t i = b; i < e; ++i) out[i - b] += sign * f0[i];
@@ -162,8 +161,7 @@ void applyCap(const std::vector<Term>& cap, const Planes& dest, int c, float* ou
 
 /// out[i - b] += the part of color - passes - min(emission, color) that `rest` names
 /// (Recipe::Rest).
-void addRest(const Recipe::Rest& rest, const Planes& dest, int c, float* out, size_t b,
-             size_t e) {
+void addRest(const Recipe::Rest& rest, const Planes& dest, int c, float* out, size_t b, size_t e) {
     std::vector<float> color(e - b, 0.f), v(e - b, 0.f), emission(e - b, 0.f);
     for (const Term& t : rest.color) addTerm(t, dest, c, 1.f, color.data(), b, e);
     for (const Term& t : rest.passes) addTerm(t, dest, c, -1.f, v.data(), b, e);

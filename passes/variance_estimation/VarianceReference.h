@@ -12,7 +12,7 @@ namespace kestrel::reference {
 
 struct VarianceInputs {
     const ImageView *color, *moments, *length, *var, *depth, *normal, *ids;  ///< ids may be null
-    float sigmaZ = 1.f, sigmaN = 128.f, sigmaL = 0.f, minHistory = 4.f;  // sigmaL 0: none
+    float sigmaZ = 1.f, sigmaN = 128.f, sigmaL = 0.f, minHistory = 4.f;      // sigmaL 0: none
 };
 
 /// Rows [y0, y1) of the output (outVar may be null).

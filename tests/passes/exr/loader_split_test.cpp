@@ -58,7 +58,8 @@ void expectSplitSumsToCombined(PassHarness& h) {
         for (int c = 0; c < 3; ++c) {
             const float sum = h.out("diffuse").at(c, x, 0) + h.out("specular").at(c, x, 0) +
                               h.out("emission").at(c, x, 0);
-            EXPECT_NEAR(sum, h.out("color").at(c, x, 0), 1e-6f) << "pixel " << x << " channel " << c;
+            EXPECT_NEAR(sum, h.out("color").at(c, x, 0), 1e-6f)
+                << "pixel " << x << " channel " << c;
         }
 }
 
@@ -68,8 +69,8 @@ TEST(ExrLoaderSplit, LightNoPassHoldsIsFilteredAsSpecular) {
     TempDir tmp("split-rest");
     auto h = loadFrame(tmp, threePixels());
     expectSplitSumsToCombined(h);
-    EXPECT_NEAR(h.out("specular").at(0, 0, 0), 0.2f, 1e-6f);       // glossy only
-    EXPECT_NEAR(h.out("emission").at(0, 0, 0), 0.05f, 1e-6f);      // Emit
+    EXPECT_NEAR(h.out("specular").at(0, 0, 0), 0.2f, 1e-6f);          // glossy only
+    EXPECT_NEAR(h.out("emission").at(0, 0, 0), 0.05f, 1e-6f);         // Emit
     EXPECT_NEAR(h.out("specular").at(0, 1, 0), 0.16f + 0.4f, 1e-6f);  // glossy + the glass
     EXPECT_NEAR(h.out("emission").at(0, 1, 0), 0.f, 1e-6f);
     EXPECT_NEAR(h.out("specular").at(0, 2, 0), 0.f, 1e-6f);  // never negative light to filter
@@ -119,7 +120,7 @@ TEST(ExrLoaderSplit, SplitWithoutEmitOrEnvKeepsTheSky) {
     h.pass().resolve(rc);
     EXPECT_EQ(rc.absent.count("emission"), 1u);  // the harness gives 0 for it
     expectSplitSumsToCombined(h);
-    EXPECT_NEAR(h.out("specular").at(0, 2, 0), 0.7f, 1e-6f);  // filtered as radiance
+    EXPECT_NEAR(h.out("specular").at(0, 2, 0), 0.7f, 1e-6f);   // filtered as radiance
     EXPECT_NEAR(h.out("specular").at(0, 0, 0), 0.25f, 1e-6f);  // glossy + the emitter
 }
 

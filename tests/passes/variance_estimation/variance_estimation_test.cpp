@@ -148,9 +148,10 @@ EqCase equivalenceCase(int w, int h, int seed, bool extreme, bool sparse = false
             sprinkleExtremes(*im, seed + 7);
     return e;
 }
-void expectEquivalent(const EqCase& e, int threads, double tol, float sigmaL = 0.f) {
-    const Extent ext = e.g.color.extent();
-    auto h = PassHarness::make<VarianceEstimationPass>(ext, {{"sigmaL", double(sigmaL)}}, threads);
+/// The pass run on the case (its own defaults, but for sigmaL).
+PassHarness runCase(const EqCase& e, int threads = 1, float sigmaL = 0.f) {
+    auto h = PassHarness::make<VarianceEstimationPass>(e.g.color.extent(),
+                                                       {{"sigmaL", double(sigmaL)}}, threads);
     h.bind("color", e.g.color);
     h.bind("moments", e.moments);
     h.bind("historyLength", e.length);
@@ -159,6 +160,11 @@ void expectEquivalent(const EqCase& e, int threads, double tol, float sigmaL = 0
     h.bind("normal", e.g.normal);
     h.bind("objectId", e.g.ids);
     h.run();
+    return h;
+}
+void expectEquivalent(const EqCase& e, int threads, double tol, float sigmaL = 0.f) {
+    const Extent ext = e.g.color.extent();
+    auto h = runCase(e, threads, sigmaL);
     Image refC(ext, Format::Float3), refV(ext, Format::Float);
     reference::VarianceInputs in{&e.g.color.view(), &e.moments.view(), &e.length.view(),
                                  &e.var.view(),     &e.g.depth.view(), &e.g.normal.view(),
@@ -211,19 +217,7 @@ TEST(VarianceEstimation, SpatialEstimateIsTheSameAtAnyExposure) {
             bright.moments.at(1, x, y) *= 1e6f;
             bright.var.at(0, x, y) *= 1e6f;
         }
-    auto run = [](const EqCase& c) {
-        auto h = PassHarness::make<VarianceEstimationPass>(c.g.color.extent());
-        h.bind("color", c.g.color);
-        h.bind("moments", c.moments);
-        h.bind("historyLength", c.length);
-        h.bind("variance", c.var);
-        h.bind("depth", c.g.depth);
-        h.bind("normal", c.g.normal);
-        h.bind("objectId", c.g.ids);
-        h.run();
-        return h;
-    };
-    auto a = run(e), b = run(bright);
+    auto a = runCase(e), b = runCase(bright);
     for (int y = 0; y < 24; ++y)
         for (int x = 0; x < 40; ++x) {
             const float v = a.out("variance").at(0, x, y);
