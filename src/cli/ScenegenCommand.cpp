@@ -34,6 +34,7 @@ void overrideGiven(scenegen::SceneOptions& zoo, const scenegen::SceneOptions& gi
     if (given_("--static-camera")) zoo.staticCamera = given.staticCamera;
     if (given_("--camera-cut")) zoo.cameraCutFrame = given.cameraCutFrame;
     if (given_("--pixel-filter")) zoo.pixelFilterWidth = given.pixelFilterWidth;
+    if (given_("--exposure")) zoo.exposure = given.exposure;
     zoo.threads = given.threads;
 }
 
@@ -71,6 +72,9 @@ void addScenegenCommand(CLI::App& app, Action& action) {
                     "Blackman-Harris pixel filter width in pixels (0: pixel centres; street "
                     "scenes only; Blender's default is 1.5)")
         ->check(CLI::Range(0.0, 8.0));
+    cmd->add_option("--exposure", o->scene.exposure,
+                    "Scale of the radiance (every light AOV and the reference): renders come in "
+                    "their own units; in (0, 1e9]");
     cmd->add_option("--threads", o->scene.threads, "Threads (default: all cores)");
     cmd->callback([&action, o, cmd] {
         if (!o->sceneName.empty()) {

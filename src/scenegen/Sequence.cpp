@@ -47,7 +47,7 @@ public:
     bool keep(const char* aov) const { return !o_.omit.count(aov); }
 
     void canonical(int frame) {
-        const FrameAovs f = renderFrame(o_, frame);
+        const FrameAovs f = exposed(renderFrame(o_, frame));
         std::vector<float> ids(f.objectId.begin(), f.objectId.end());
         std::vector<ExrChannel> ch;
         auto add3 = [&](const char* aov, const std::array<std::vector<float>, 3>& img,
@@ -80,7 +80,7 @@ public:
         writeExr(dir_ / "noisy" / numbered("frame_%04d.exr", frame), f.width, f.height, ch, attrs);
         ++files;
 
-        const std::vector<float> ref = renderReference(o_, frame);
+        const std::vector<float> ref = exposed(renderReference(o_, frame));
         const size_t n = size_t(f.width) * size_t(f.height);
         writeExr(dir_ / "ref" / numbered("frame_%04d.exr", frame), f.width, f.height,
                  {{"R", ref.data()}, {"G", ref.data() + n}, {"B", ref.data() + 2 * n}}, attrs);
@@ -88,7 +88,7 @@ public:
     }
 
     void games202(int frame) {
-        const FrameAovs f = renderFrame(o_, frame);
+        const FrameAovs f = exposed(renderFrame(o_, frame));
         const int w = f.width, h = f.height;
         const size_t n = size_t(w) * size_t(h);
         auto rgb = [&](const char* stem, const std::array<std::vector<float>, 3>& img) {
@@ -123,13 +123,25 @@ public:
             writeFileAtomic(dir_ / numbered("matrix_%d.mat", frame), games202MatrixFile(f));
             ++files;
         }
-        const std::vector<float> ref = renderReference(o_, frame);
+        const std::vector<float> ref = exposed(renderReference(o_, frame));
         writeExr(dir_ / "reference" / numbered("beauty_%d.exr", frame), w, h,
                  {{"R", ref.data()}, {"G", ref.data() + n}, {"B", ref.data() + 2 * n}});
         ++files;
     }
 
 private:
+    /// The light scaled by SceneOptions::exposure.
+    std::vector<float> exposed(std::vector<float> v) const {
+        if (o_.exposure != 1.f)
+            for (float& x : v) x *= o_.exposure;
+        return v;
+    }
+    FrameAovs exposed(FrameAovs f) const {
+        for (auto* img : {&f.color, &f.emission, &f.direct, &f.indirect, &f.diffuse, &f.specular})
+            for (auto& plane : *img) plane = exposed(std::move(plane));
+        return f;
+    }
+
     const SceneOptions& o_;
     fs::path dir_;
 };
@@ -153,6 +165,8 @@ WriteStats writeSequence(const SceneOptions& options, const fs::path& dir,
                                         "specularAlbedo, normal, depth, position, motion, "
                                         "objectId, camera)");
     if (options.frames < 1) throw std::invalid_argument("scenegen: frames must be >= 1");
+    if (!(options.exposure > 0.f && options.exposure <= 1e9f))
+        throw std::invalid_argument("scenegen: exposure must be in (0, 1e9]");
     const bool games = options.layout == SceneOptions::Layout::Games202;
     if (games) {
         makeDir(dir / "reference");

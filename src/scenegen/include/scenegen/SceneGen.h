@@ -44,6 +44,10 @@ struct SceneOptions {
     /// random point of the filter footprint (every G-buffer AOV is that one sample) and the
     /// reference is the filtered average (anti-aliased). Street kinds only.
     float pixelFilterWidth = 0.f;
+    /// Scale of every written light AOV (color, emission, direct, indirect, diffuse, specular)
+    /// and of the reference: a render's radiance units are its own (a physically based sun
+    /// can be 1000x the zoo's), and a denoiser's result should not depend on them.
+    float exposure = 1.f;
     /// AOVs left out of the files: albedo, emission, direct, indirect, diffuse, diffuseAlbedo,
     /// specular, specularAlbedo, normal, depth, position, motion, objectId, camera (the matrices).
     /// Unknown names are rejected by writeSequence.
