@@ -128,7 +128,11 @@ std::string describeTerms(const Recipe& r) {
         }
     };
     for (const auto& t : r.terms) add(t, " + ");
-    if (!r.cap.empty()) s = "min(" + s + ", Combined)";
+    if (!r.cap.empty()) {
+        Recipe capOnly;
+        capOnly.terms = r.cap;
+        s = "min(" + s + ", " + describeTerms(capOnly) + ")";
+    }
     if (r.rest)
         s += std::string(s.empty() ? "" : " + ") + "the " +
              (r.rest->part == Recipe::Rest::Part::Positive ? "positive part of the " : "") +
@@ -271,14 +275,14 @@ Plan planBlender(const ChannelSets& files, const std::string& L) {
     // The specular chain filters every non-diffuse light the render splits out: glossy, and
     // transmission (glass) and volume where the scene enables those passes.
     std::vector<std::vector<std::string>> specular, specularAlbedo = {{P("GlossCol")}};
+    const bool transmission = has("TransCol") && (has("TransDir") || has("TransInd"));
     for (const char* part : {"Dir", "Ind"}) {
         specular.push_back({P("Gloss") + part, P("GlossCol")});
-        if (has(std::string("Trans") + part) && has("TransCol"))
+        if (transmission && has(std::string("Trans") + part))
             specular.push_back({P("Trans") + part, P("TransCol")});
         if (has(std::string("Volume") + part)) specular.push_back({P("Volume") + part});
     }
-    if (has("TransDir") && has("TransInd") && has("TransCol"))
-        specularAlbedo.push_back({P("TransCol")});
+    if (transmission) specularAlbedo.push_back({P("TransCol")});
     for (const char* part : {"Dir", "Ind"}) {
         std::vector<std::vector<std::string>> terms = {{P("Diff") + part, P("DiffCol")},
                                                        {P("Gloss") + part, P("GlossCol")}};
@@ -322,6 +326,10 @@ void addSplitRest(Plan& plan, const std::set<std::string>& keep) {
     Recipe::Rest rest{color.terms, diffuse.terms, {}};
     rest.passes.insert(rest.passes.end(), specular.terms.begin(), specular.terms.end());
     if (!emission.absent) rest.emission = emission.terms;
+    if (!emission.absent && !keep.count("emission")) {
+        emission.cap = color.terms;  // the colour the channels parameter may have set
+        emission.why = describeTerms(emission);
+    }
     if (!keep.count("specular")) {
         specular.rest = rest;
         specular.why = describeTerms(specular);

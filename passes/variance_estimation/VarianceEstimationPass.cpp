@@ -341,7 +341,8 @@ PassDesc VarianceEstimationPass::describe() {
         .paramFloat("sigmaN", 128.0, 0.0, 1e4, "normal weight exponent")
         .paramFloat("sigmaL", 0.0, 0.0, 1e6,
                     "luminance weight exp(-|l_p - l_q| / sigmaL) in absolute luminance (Falcor's"
-                    " phiColor, 10); 0: none. Off by default: in absolute units it depends on the"
+                    " phiColor, 10; values below 1e-6 count as 1e-6); 0: none. Off by default: in "
+                    "absolute units it depends on the"
                     " render's exposure (svgf.json on blender-street 1000x brighter: -2.5 dB with"
                     " 10, blender-street-defaults -8 dB), at scale 1 it measured -0.17 to +0.04 dB")
         .paramFloat("minHistoryLength", 4.0, 0.0, 1e6,
@@ -371,7 +372,7 @@ void VarianceEstimationPass::execute(FrameContext& ctx, PassIO& io) {
               io.hasInput("objectId") ? io.input("objectId").ints() : nullptr,
               sigmaZ_,
               sigmaN_,
-              sigmaL_ > 0.f ? 1.f / sigmaL_ : 0.f};
+              sigmaL_ > 0.f ? 1.f / std::max(sigmaL_, reference::kMinSigmaL) : 0.f};
     const ImageView& outC = io.output("color");
     const ImageView* outV = io.hasOutput("variance") ? &io.output("variance") : nullptr;
     if (exact_) {

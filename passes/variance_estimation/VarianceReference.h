@@ -10,6 +10,9 @@
 
 namespace kestrel::reference {
 
+/// The smallest luminance tolerance VarianceEstimation uses (a smaller sigmaL counts as this).
+constexpr float kMinSigmaL = 1e-6f;
+
 struct VarianceInputs {
     const ImageView *color, *moments, *length, *var, *depth, *normal, *ids;  ///< ids may be null
     float sigmaZ = 1.f, sigmaN = 128.f, sigmaL = 0.f, minHistory = 4.f;      // sigmaL 0: none
@@ -51,8 +54,9 @@ inline void varianceEstimation(const VarianceInputs& in, const ImageView& outCol
                         const float ez = std::fabs(zp - z(xq, yq)) /
                                          (in.sigmaZ * std::fabs(gx * float(i) + gy * float(j)) +
                                           1e-5f * zp + 1e-8f);
-                        const float el =
-                            in.sigmaL > 0.f ? std::fabs(lp - lum(xq, yq)) / in.sigmaL : 0.f;
+                        const float el = in.sigmaL > 0.f ? std::fabs(lp - lum(xq, yq)) /
+                                                               std::max(in.sigmaL, kMinSigmaL)
+                                                         : 0.f;
                         float wn = 1.f;
                         if (in.sigmaN > 0.f) {
                             const float dot = nrm(0, x, y) * nrm(0, xq, yq) +

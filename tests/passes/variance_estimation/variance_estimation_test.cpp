@@ -68,7 +68,7 @@ TEST(VarianceEstimation, NoLeakAcrossDepthEdge) {
     for (int y = 0; y < h; ++y)
         for (int x = 7; x < w; ++x) {
             in.depth.at(0, x, y) = 9.f;
-            for (int c = 0; c < 3; ++c) in.color.at(c, x, y) = 0.05f;  // within sigmaL of 0
+            for (int c = 0; c < 3; ++c) in.color.at(c, x, y) = 0.05f;  // little luminance step
             in.moments.at(0, x, y) = 100.f;
             in.moments.at(1, x, y) = 20000.f;
         }
@@ -118,6 +118,8 @@ TEST(VarianceEstimation, IdenticalWithOneAndTwoThreads) {
 // uses libm. Measured worst differences (colour, variance): 1.3e-5, 5.5e-5 on random inputs;
 // the tolerance is 1e-4 relative to |reference| + 1 (colour) or + 4 max m2 (variance, whose
 // m2 - m1^2 cancels).
+#include <optional>
+
 #include "../EquivalenceImages.h"
 #include "VarianceReference.h"
 
@@ -148,10 +150,11 @@ EqCase equivalenceCase(int w, int h, int seed, bool extreme, bool sparse = false
             sprinkleExtremes(*im, seed + 7);
     return e;
 }
-/// The pass run on the case (its own defaults, but for sigmaL).
-PassHarness runCase(const EqCase& e, int threads = 1, float sigmaL = 0.f) {
-    auto h = PassHarness::make<VarianceEstimationPass>(e.g.color.extent(),
-                                                       {{"sigmaL", double(sigmaL)}}, threads);
+/// The pass run on the case (its own defaults, but for sigmaL when given).
+PassHarness runCase(const EqCase& e, int threads = 1, std::optional<float> sigmaL = {}) {
+    std::map<std::string, ParamValue> params;
+    if (sigmaL) params["sigmaL"] = double(*sigmaL);
+    auto h = PassHarness::make<VarianceEstimationPass>(e.g.color.extent(), params, threads);
     h.bind("color", e.g.color);
     h.bind("moments", e.moments);
     h.bind("historyLength", e.length);
