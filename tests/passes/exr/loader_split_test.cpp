@@ -45,13 +45,16 @@ Channels fourPixels() {
 
 constexpr int kPixels = 4;
 
-PassHarness loadFrame(const TempDir& tmp, const Channels& ch, const std::string& channels = {}) {
+/// The loader on `ch` (frame 1), computing `outputs`; `channels`: the channels parameter.
+PassHarness loadFrame(const TempDir& tmp, const Channels& ch, const std::string& channels = {},
+                      const std::vector<std::string>& outputs = {"color", "diffuse", "specular",
+                                                                 "specularAlbedo", "emission"}) {
     writeExr(tmp.path / "f.0001.exr", Imath::Box2i({0, 0}, {kPixels - 1, 0}), ch);
     std::map<std::string, kestrel::ParamValue> params = {
         {"path", (tmp.path / "f.####.exr").string()}};
     if (!channels.empty()) params["channels"] = channels;
     auto h = PassHarness::make<ExrLoader>({1, 1}, params);
-    h.useOutputs({"color", "diffuse", "specular", "specularAlbedo", "emission"});
+    h.useOutputs(outputs);
     h.ctx.frameNumber = 1;
     h.run();
     return h;
@@ -87,11 +90,7 @@ TEST(ExrLoaderSplit, LightNoPassHoldsIsFilteredAsSpecular) {
 // (svgf.json binds both and takes it from their planes): the same specular.
 TEST(ExrLoaderSplit, RestFromThePassesMatchesTheRestFromThePlanes) {
     TempDir tmp("split-rest-generic");
-    writeExr(tmp.path / "f.0001.exr", Imath::Box2i({0, 0}, {kPixels - 1, 0}), fourPixels());
-    auto h = PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / "f.####.exr").string()}});
-    h.useOutputs({"specular", "emission"});
-    h.ctx.frameNumber = 1;
-    h.run();
+    auto h = loadFrame(tmp, fourPixels(), {}, {"specular", "emission"});
     TempDir tmp2("split-rest-planes");
     auto all = loadFrame(tmp2, fourPixels());
     for (int x = 0; x < kPixels; ++x)
@@ -181,11 +180,7 @@ TEST(ExrLoaderSplit, SplitWithoutEmitOrEnvKeepsTheSky) {
 // Combined, Emit and Env only: the emission's cap needs no split pass.
 TEST(ExrLoaderSplit, EmissionAloneReadsNoSplitPass) {
     TempDir tmp("split-emission-only");
-    writeExr(tmp.path / "f.0001.exr", Imath::Box2i({0, 0}, {kPixels - 1, 0}), fourPixels());
-    auto h = PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / "f.####.exr").string()}});
-    h.useOutputs({"color", "emission"});
-    h.ctx.frameNumber = 1;
-    h.run();
+    auto h = loadFrame(tmp, fourPixels(), {}, {"color", "emission"});
     EXPECT_NEAR(h.out("emission").at(0, 0, 0), 0.05f, 1e-6f);
     EXPECT_NEAR(h.out("emission").at(0, 2, 0), 0.f, 1e-6f);  // min(Env, Combined)
     const auto read = static_cast<ExrLoader&>(h.pass()).channelsRead();
