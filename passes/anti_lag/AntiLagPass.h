@@ -1,0 +1,24 @@
+#pragma once
+// AntiLag: shortens the reprojected history where the lighting changed, so a light switched off,
+// a moving shadow or a dimming sky does not linger for the frames the temporal filter needs to
+// forget it (SVGF's "lagging shadows"). After A-SVGF (Schied et al., HPG 2018: a temporal
+// gradient raises the blend weight, alpha' = (1 - lambda) alpha + lambda), with the gradient
+// estimated from the frames SVGF has, not from re-shaded samples: the difference of the current
+// frame's and the history's mean luminance over a window, less what the current frame's noise
+// explains, relative to the smaller of the two.
+#include <kestrel/Kestrel.h>
+
+class AntiLagPass final : public kestrel::Pass {
+public:
+    static kestrel::PassDesc describe();
+    explicit AntiLagPass(const kestrel::ParamValues& p);
+    void execute(kestrel::FrameContext& ctx, kestrel::PassIO& io) override;
+
+    struct Settings {
+        int radius;   ///< window half-width in pixels
+        float sigma;  ///< standard errors of the current window mean a difference must exceed
+    };
+
+private:
+    Settings s_;
+};

@@ -1,0 +1,7 @@
+#include <kestrel/Plugin.h>
+
+#include "AntiLagPass.h"
+
+KESTREL_PLUGIN(r) {
+    r.add<AntiLagPass>();
+}
