@@ -33,6 +33,8 @@ void overrideGiven(scenegen::SceneOptions& zoo, const scenegen::SceneOptions& gi
     if (given_("--seed")) zoo.seed = given.seed;
     if (given_("--static-camera")) zoo.staticCamera = given.staticCamera;
     if (given_("--camera-cut")) zoo.cameraCutFrame = given.cameraCutFrame;
+    if (given_("--light-change")) zoo.lightChangeFrame = given.lightChangeFrame;
+    if (given_("--light-scale")) zoo.lightChangeScale = given.lightChangeScale;
     if (given_("--pixel-filter")) zoo.pixelFilterWidth = given.pixelFilterWidth;
     if (given_("--exposure")) zoo.exposure = given.exposure;
     zoo.threads = given.threads;
@@ -68,6 +70,12 @@ void addScenegenCommand(CLI::App& app, Action& action) {
                     "AOVs to leave out, comma-separated (albedo,emission,motion,...)");
     cmd->add_flag("--static-camera", o->scene.staticCamera, "Keep the camera still");
     cmd->add_option("--camera-cut", o->scene.cameraCutFrame, "Frame at which the camera jumps");
+    cmd->add_option("--light-change", o->scene.lightChangeFrame,
+                    "Street scenes: frame from which the sun (at night the lamp) shines at "
+                    "--light-scale of its strength");
+    cmd->add_option("--light-scale", o->scene.lightChangeScale,
+                    "Street scenes: the key light's strength from --light-change on (default 0.2)")
+        ->check(CLI::Range(0.0, 1e6));
     cmd->add_option("--pixel-filter", o->scene.pixelFilterWidth,
                     "Blackman-Harris pixel filter width in pixels (0: pixel centres; street "
                     "scenes only; Blender's default is 1.5)")

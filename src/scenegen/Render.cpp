@@ -21,6 +21,10 @@ void checkOptions(const SceneOptions& o) {
         throw std::invalid_argument("scenegen: pixelFilterWidth must be in 0..8 pixels");
     if (o.kind == SceneOptions::Kind::Room && o.pixelFilterWidth > 0.f)
         throw std::invalid_argument("scenegen: the room scene has no pixel filter (use a street)");
+    if (o.kind == SceneOptions::Kind::Room && o.lightChangeFrame >= 0)
+        throw std::invalid_argument("scenegen: the room scene has no light change (use a street)");
+    if (!(o.lightChangeScale >= 0.f && o.lightChangeScale <= 1e6f))
+        throw std::invalid_argument("scenegen: lightChangeScale must be in 0..1e6");
 }
 
 }  // namespace

@@ -140,6 +140,10 @@ StreetState makeStreet(const SceneOptions& opt, int frame) {
     StreetState s;
     s.camera = streetCamera(opt, frame);
     setLights(s, opt.kind == Kind::StreetNight);
+    if (opt.lightChangeFrame >= 0 && frame >= opt.lightChangeFrame) {
+        s.sunIrradiance = s.sunIrradiance * opt.lightChangeScale;
+        s.lampRadiance = s.lampRadiance * opt.lightChangeScale;
+    }
     addStaticBoxes(s);
     addFence(s);
 

@@ -45,6 +45,13 @@ std::vector<ZooScene> zooScenes() {
     zoo.push_back({"street-static", still,
                    "the street seen from a still camera: only the van moves (disocclusion "
                    "without camera motion)"});
+    SceneOptions cloud = zooBase(Kind::Street);
+    cloud.lightChangeFrame = 7;
+    cloud.lightChangeScale = 0.2f;
+    zoo.push_back({"street-cloud", cloud,
+                   "the street with the sun dimmed to 0.2x from frame 7 on (a cloud; the lamp "
+                   "too): the lighting changes where the geometry does not, so the history "
+                   "must not keep the old light"});
     zoo.push_back({"fireflies", zooBase(Kind::StreetNight),
                    "the street at night: dim sky, a small intense lamp the 1-spp frames reach "
                    "only by BSDF sampling (rare very bright samples, also through the glossy "

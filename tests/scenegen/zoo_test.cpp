@@ -77,10 +77,31 @@ TEST(SceneZoo, ListsNamedScenesAtTheirIntendedSize) {
     EXPECT_EQ(zoo("street-jittered").pixelFilterWidth, 1.5f);
     EXPECT_EQ(zoo("street").pixelFilterWidth, 0.f);
     EXPECT_EQ(zoo("fireflies").kind, SceneOptions::Kind::StreetNight);
+    EXPECT_EQ(zoo("street-cloud").lightChangeFrame, 7);
     EXPECT_THROW(zooScene("no-such-scene"), std::invalid_argument);
     SceneOptions roomJitter;
     roomJitter.pixelFilterWidth = 1.5f;  // the room has no filter: refused, not ignored
     EXPECT_THROW(renderFrame(roomJitter, 1), std::invalid_argument);
+    SceneOptions roomCloud;
+    roomCloud.lightChangeFrame = 2;  // likewise the light change
+    EXPECT_THROW(renderFrame(roomCloud, 1), std::invalid_argument);
+}
+
+// street-cloud is the street until its light change, and darker (the sun at 0.2x) from it on.
+TEST(SceneZoo, LightChangeDimsTheSunFromItsFrameOn) {
+    SceneOptions street = zoo("street"), cloud = zoo("street-cloud");
+    street.referenceSpp = cloud.referenceSpp = 4;
+    auto sum = [](const std::vector<float>& im) {
+        double s = 0;
+        for (float v : im) s += v;
+        return s;
+    };
+    const int before = cloud.lightChangeFrame - 1, after = cloud.lightChangeFrame;
+    EXPECT_EQ(renderReference(street, before), renderReference(cloud, before));
+    const double lit = sum(renderReference(street, after)),
+                 dim = sum(renderReference(cloud, after));
+    std::printf("frame %d: radiance %.1f lit, %.1f under the cloud\n", after, lit, dim);
+    EXPECT_LT(dim, 0.8 * lit);
 }
 
 TEST(SceneZoo, EverySceneIsIdenticalWhateverTheThreadCount) {
