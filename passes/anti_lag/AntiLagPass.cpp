@@ -6,7 +6,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <limits>
+#include <vector>
 
 using namespace kestrel;
 
@@ -30,15 +32,28 @@ inline float luminance(float r, float g, float b) {
     return std::max(l, 0.f);  // emission subtracted from a noisy colour can leave it below 0
 }
 
+/// Which pixels have a history, one bit per pixel, each row in whole words (a row's bits are
+/// written by one thread): the window reads its neighbours' validity from here, so the lengths
+/// can be gated in place (a row's length is then read only by its own pixel, before it is
+/// written).
+struct ValidMask {
+    int words;  ///< per row
+    std::vector<uint64_t> bits;
+    ValidMask(int w, int h) : words((w + 63) / 64), bits(size_t(words) * size_t(h)) {}
+    uint64_t* row(int y) { return bits.data() + size_t(y) * size_t(words); }
+    const uint64_t* row(int y) const { return bits.data() + size_t(y) * size_t(words); }
+};
+
 /// The per-pixel terms of image row y, written from t[k] + pad on.
-void rowTerms(const ImageView& color, const ImageView& history, const ImageView& length, int y,
+void rowTerms(const ImageView& color, const ImageView& history, const ValidMask& valid, int y,
               const RowSums& t, int pad) {
-    const float *hl = length.row(0, y), *r = color.row(0, y), *g = color.row(1, y),
-                *b = color.row(2, y), *hr = history.row(0, y), *hg = history.row(1, y),
-                *hb = history.row(2, y);
+    const int w = color.width();
+    const float *r = color.row(0, y), *g = color.row(1, y), *b = color.row(2, y),
+                *hr = history.row(0, y), *hg = history.row(1, y), *hb = history.row(2, y);
+    const uint64_t* vm = valid.row(y);
     float *tn = t[N] + pad, *tc = t[C] + pad, *tc2 = t[C2] + pad, *th = t[H] + pad;
-    for (int x = 0; x < color.width(); ++x) {
-        const bool v = validLength(hl[x]);
+    for (int x = 0; x < w; ++x) {
+        const bool v = (vm[x >> 6] >> (x & 63)) & 1u;
         const float lc = v ? luminance(r[x], g[x], b[x]) : 0.f;
         tn[x] = v ? 1.f : 0.f;
         tc[x] = lc;
@@ -80,8 +95,9 @@ inline float gate(float hl, float n, float c, float c2, float hs, float sigma) {
     return validLength(hl) ? shortened(std::min(hl, kMaxLength), lambda) : 0.f;
 }
 
-void gateRows(const ImageView& color, const ImageView& history, const ImageView& length,
-              const ImageView& out, AntiLagPass::Settings s, int y0, int y1) {
+void gateRows(const ImageView& color, const ImageView& history, const ValidMask& valid,
+              const ImageView& length, const ImageView& out, AntiLagPass::Settings s, int y0,
+              int y1) {
     const int w = color.width(), h = color.height(), taps = 2 * s.radius + 1;
     // A ring of the window's rows, each summed along x, then the column sums: each row's sums
     // are computed the same way whichever band holds it, and the columns summed in a fixed
@@ -98,7 +114,7 @@ void gateRows(const ImageView& color, const ImageView& history, const ImageView&
         std::fill_n(t + s.radius + w, s.radius, 0.f);
     }
     auto enter = [&](int y) {
-        rowTerms(color, history, length, y, terms, s.radius);
+        rowTerms(color, history, valid, y, terms, s.radius);
         const RowSums r = ring(y);
         for (int k = 0; k < kTerms; ++k) boxRow(terms[k], r[k], w, s.radius);
     };
@@ -135,6 +151,7 @@ PassDesc AntiLagPass::describe() {
         .input("history", Format::Float3, "the reprojected colour history")
         .input("historyLength", Format::Float, "the reprojected history length (0: none)")
         .output("historyLength", Format::Float, "the history length to accumulate with")
+        .inPlaceOf("historyLength")
         .paramInt("radius", 4, 1, 16, "window half-width in pixels (4: 9x9)")
         .paramFloat("sigma", 4.0, 0.0, 1e6,
                     "standard errors of the current window's mean luminance a difference must "
@@ -147,6 +164,16 @@ AntiLagPass::AntiLagPass(const ParamValues& p) : s_{int(p.getInt("radius")), p.g
 void AntiLagPass::execute(FrameContext& ctx, PassIO& io) {
     const ImageView &color = io.input("color"), &history = io.input("history"),
                     &length = io.input("historyLength"), &out = io.output("historyLength");
-    ctx.parallelRows(ctx.extent.height,
-                     [&](int y0, int y1) { gateRows(color, history, length, out, s_, y0, y1); });
+    const int w = ctx.extent.width;
+    ValidMask valid(w, ctx.extent.height);
+    ctx.parallelRows(ctx.extent.height, [&](int y0, int y1) {
+        for (int y = y0; y < y1; ++y) {
+            const float* hl = length.row(0, y);
+            uint64_t* vm = valid.row(y);
+            for (int x = 0; x < w; ++x) vm[x >> 6] |= uint64_t(validLength(hl[x])) << (x & 63);
+        }
+    });
+    ctx.parallelRows(ctx.extent.height, [&](int y0, int y1) {
+        gateRows(color, history, valid, length, out, s_, y0, y1);
+    });
 }

@@ -195,8 +195,9 @@ TEST(SvgfInPlace, SameOutputWithAndWithoutInPlaceOutputs) {
     std::vector<std::vector<float>> a, b;
     const RunResult inPlace = runGraph("svgf.json", in, ref, frames, false, {}, true, &a);
     const RunResult apart = runGraph("svgf.json", in, ref, frames, false, {}, false, &b);
-    // Demodulate's illumination, TemporalAccumulation's colour and variance, Modulate's colour.
-    EXPECT_EQ(inPlace.inPlaceOutputs, 4);
+    // Demodulate's illumination, AntiLag's history length, TemporalAccumulation's colour and
+    // variance, Modulate's colour.
+    EXPECT_EQ(inPlace.inPlaceOutputs, 5);
     EXPECT_EQ(apart.inPlaceOutputs, 0);
     EXPECT_EQ(inPlace.transientPlanes, 17);
     EXPECT_EQ(apart.transientPlanes, 19);
