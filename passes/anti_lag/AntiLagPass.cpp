@@ -1,3 +1,6 @@
+// Compiled once per SIMD target (hwy/foreach_target.h re-includes this file for each one): the
+// scalar loops auto-vectorise for each instruction set; the HWY_ONCE part at the end picks the
+// running CPU's best target. No contraction (-ffp-contract=off): every target rounds alike.
 #include "AntiLagPass.h"
 
 #include <kestrel/PixelMath.h>
@@ -10,11 +13,20 @@
 #include <limits>
 #include <vector>
 
-using namespace kestrel;
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "AntiLagPass.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+#include <hwy/highway.h>
 
+HWY_BEFORE_NAMESPACE();
+namespace kestrel::HWY_NAMESPACE {
 namespace {
 
-constexpr float kMaxLength = 1e6f;  // as TemporalAccumulation reads a history length
+namespace hn = hwy::HWY_NAMESPACE;
+
+constexpr float kMaxLength = 1e6f;
+constexpr int kMaxRadius =
+    16;  // the radius parameter's bound  // as TemporalAccumulation reads a history length
 
 inline bool validLength(float h) {
     return (h > 0.f) & (h <= std::numeric_limits<float>::max());
@@ -52,22 +64,39 @@ void rowTerms(const ImageView& color, const ImageView& history, const ValidMask&
                 *hr = history.row(0, y), *hg = history.row(1, y), *hb = history.row(2, y);
     const uint64_t* vm = valid.row(y);
     float *tn = t[N] + pad, *tc = t[C] + pad, *tc2 = t[C2] + pad, *th = t[H] + pad;
-    for (int x = 0; x < w; ++x) {
-        const bool v = (vm[x >> 6] >> (x & 63)) & 1u;
+    for (int x = 0; x < w; ++x) tn[x] = float((vm[x >> 6] >> (x & 63)) & 1u);
+    for (int x = 0; x < w; ++x) {  // vectorised
+        const bool v = tn[x] != 0.f;
         const float lc = v ? luminance(r[x], g[x], b[x]) : 0.f;
-        tn[x] = v ? 1.f : 0.f;
         tc[x] = lc;
         tc2[x] = lc * lc;
         th[x] = v ? luminance(hr[x], hg[x], hb[x]) : 0.f;
     }
 }
 
-/// Box sums of half-width r along a row padded with r zeros on each side, summed left to right
-/// (a fixed order: a row's sums are the same whichever thread computes them).
+/// out[x] = src[0][x] + src[1][x] + ... + src[n - 1][x], summed in that order (so the same
+/// whichever thread or SIMD target computes it), the sum kept in a register.
+void sumRows(const float* const* src, int n, float* out, int w) {
+    const hn::ScalableTag<float> d;
+    const int lanes = int(hn::Lanes(d));
+    int x = 0;
+    for (; x + lanes <= w; x += lanes) {
+        auto s = hn::LoadU(d, src[0] + x);
+        for (int i = 1; i < n; ++i) s = hn::Add(s, hn::LoadU(d, src[i] + x));
+        hn::StoreU(s, d, out + x);
+    }
+    for (; x < w; ++x) {
+        float s = src[0][x];
+        for (int i = 1; i < n; ++i) s += src[i][x];
+        out[x] = s;
+    }
+}
+
+/// Box sums of half-width r along a row padded with r zeros on each side, summed left to right.
 void boxRow(const float* padded, float* out, int w, int r) {
-    std::copy_n(padded, w, out);
-    for (int d = 1; d <= 2 * r; ++d)
-        for (int x = 0; x < w; ++x) out[x] += padded[x + d];
+    std::array<const float*, 2 * kMaxRadius + 1> taps;
+    for (int i = 0; i <= 2 * r; ++i) taps[size_t(i)] = padded + i;
+    sumRows(taps.data(), 2 * r + 1, out, w);
 }
 
 /// hl' from hl and the gradient lambda in [0, 1]: the current frame's blend weight a = 1 / (hl + 1)
@@ -123,12 +152,9 @@ void gateRows(const ImageView& color, const ImageView& history, const ValidMask&
         if (y + s.radius < h) enter(y + s.radius);
         const int top = std::max(0, y - s.radius), bottom = std::min(h - 1, y + s.radius);
         for (int k = 0; k < kTerms; ++k) {
-            float* dst = col[k];
-            std::copy_n(ring(top)[k], w, dst);
-            for (int yy = top + 1; yy <= bottom; ++yy) {
-                const float* src = ring(yy)[k];
-                for (int x = 0; x < w; ++x) dst[x] += src[x];
-            }
+            std::array<const float*, 2 * kMaxRadius + 1> rows;
+            for (int yy = top; yy <= bottom; ++yy) rows[size_t(yy - top)] = ring(yy)[k];
+            sumRows(rows.data(), bottom - top + 1, col[k], w);
         }
         const float* hl = length.row(0, y);
         float* o = out.row(0, y);
@@ -137,7 +163,36 @@ void gateRows(const ImageView& color, const ImageView& history, const ValidMask&
     }
 }
 
+/// The pass for this target.
+void executeOnTarget(FrameContext& ctx, PassIO& io, AntiLagPass::Settings s) {
+    const ImageView &color = io.input("color"), &history = io.input("history"),
+                    &length = io.input("historyLength"), &out = io.output("historyLength");
+    const int w = ctx.extent.width;
+    ValidMask valid(w, ctx.extent.height);
+    ctx.parallelRows(ctx.extent.height, [&](int y0, int y1) {
+        for (int y = y0; y < y1; ++y) {
+            const float* hl = length.row(0, y);
+            uint64_t* vm = valid.row(y);
+            for (int x = 0; x < w; ++x) vm[x >> 6] |= uint64_t(validLength(hl[x])) << (x & 63);
+        }
+    });
+    ctx.parallelRows(ctx.extent.height, [&](int y0, int y1) {
+        gateRows(color, history, valid, length, out, s, y0, y1);
+    });
+}
+
 }  // namespace
+}  // namespace kestrel::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace kestrel {
+namespace {
+HWY_EXPORT(executeOnTarget);
+}  // namespace
+}  // namespace kestrel
+
+using namespace kestrel;
 
 PassDesc AntiLagPass::describe() {
     PassDesc d("AntiLag",
@@ -152,7 +207,7 @@ PassDesc AntiLagPass::describe() {
         .input("historyLength", Format::Float, "the reprojected history length (0: none)")
         .output("historyLength", Format::Float, "the history length to accumulate with")
         .inPlaceOf("historyLength")
-        .paramInt("radius", 4, 1, 16, "window half-width in pixels (4: 9x9)")
+        .paramInt("radius", 4, 1, 16, "window half-width in pixels (4: 9x9)")  // kMaxRadius
         .paramFloat("sigma", 4.0, 0.0, 1e6,
                     "standard errors of the current window's mean luminance a difference must "
                     "exceed before the history is shortened (higher: fewer false alarms on noise)");
@@ -162,18 +217,6 @@ PassDesc AntiLagPass::describe() {
 AntiLagPass::AntiLagPass(const ParamValues& p) : s_{int(p.getInt("radius")), p.getFloat("sigma")} {}
 
 void AntiLagPass::execute(FrameContext& ctx, PassIO& io) {
-    const ImageView &color = io.input("color"), &history = io.input("history"),
-                    &length = io.input("historyLength"), &out = io.output("historyLength");
-    const int w = ctx.extent.width;
-    ValidMask valid(w, ctx.extent.height);
-    ctx.parallelRows(ctx.extent.height, [&](int y0, int y1) {
-        for (int y = y0; y < y1; ++y) {
-            const float* hl = length.row(0, y);
-            uint64_t* vm = valid.row(y);
-            for (int x = 0; x < w; ++x) vm[x >> 6] |= uint64_t(validLength(hl[x])) << (x & 63);
-        }
-    });
-    ctx.parallelRows(ctx.extent.height, [&](int y0, int y1) {
-        gateRows(color, history, valid, length, out, s_, y0, y1);
-    });
+    HWY_DYNAMIC_DISPATCH(executeOnTarget)(ctx, io, s_);
 }
+#endif  // HWY_ONCE
