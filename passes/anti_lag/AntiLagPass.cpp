@@ -24,9 +24,8 @@ namespace {
 
 namespace hn = hwy::HWY_NAMESPACE;
 
-constexpr float kMaxLength = 1e6f;
-constexpr int kMaxRadius =
-    16;  // the radius parameter's bound  // as TemporalAccumulation reads a history length
+constexpr float kMaxLength = 1e6f;  // as TemporalAccumulation reads a history length
+constexpr int kMaxRadius = AntiLagPass::kMaxRadius;
 
 inline bool validLength(float h) {
     return (h > 0.f) & (h <= std::numeric_limits<float>::max());
@@ -200,21 +199,29 @@ PassDesc AntiLagPass::describe() {
                "temporal-gradient test): where the window means of the current frame's and of the "
                "history's luminance differ by more than sigma standard errors of the current "
                "mean, the excess over the smaller mean is the gradient lambda (at most 1), and "
-               "the current frame's weight rises as A-SVGF's alpha' = (1 - lambda) alpha + "
-               "lambda. Exposure-independent.");
+               "the current frame's weight 1 / (length + 1) rises as A-SVGF's a' = (1 - lambda) "
+               "a + lambda (TemporalAccumulation's alpha floor applies after). "
+               "Exposure-independent.");
     d.input("color", Format::Float3, "this frame's (demodulated) colour")
         .input("history", Format::Float3, "the reprojected colour history")
         .input("historyLength", Format::Float, "the reprojected history length (0: none)")
         .output("historyLength", Format::Float, "the history length to accumulate with")
         .inPlaceOf("historyLength")
-        .paramInt("radius", 4, 1, 16, "window half-width in pixels (4: 9x9)")  // kMaxRadius
+        .paramInt("radius", 4, 1, kMaxRadius, "window half-width in pixels (4: 9x9)")
         .paramFloat("sigma", 4.0, 0.0, 1e6,
                     "standard errors of the current window's mean luminance a difference must "
-                    "exceed before the history is shortened (higher: fewer false alarms on noise)");
+                    "exceed before the history is shortened (higher: fewer false alarms on noise)")
+        .paramBool("enabled", true,
+                   "false: the history length passes through unchanged and the pass is left out");
     return d;
 }
 
-AntiLagPass::AntiLagPass(const ParamValues& p) : s_{int(p.getInt("radius")), p.getFloat("sigma")} {}
+AntiLagPass::AntiLagPass(const ParamValues& p)
+    : s_{int(p.getInt("radius")), p.getFloat("sigma")}, enabled_(p.getBool("enabled")) {}
+
+void AntiLagPass::resolve(ResolveContext& rc) {
+    if (!enabled_) rc.forward("historyLength", "historyLength");
+}
 
 void AntiLagPass::execute(FrameContext& ctx, PassIO& io) {
     HWY_DYNAMIC_DISPATCH(executeOnTarget)(ctx, io, s_);

@@ -2,17 +2,22 @@
 // AntiLag: shortens the reprojected history where the lighting changed, so a light switched off,
 // a moving shadow or a dimming sky does not linger for the frames the temporal filter needs to
 // forget it (SVGF's "lagging shadows"). After A-SVGF (Schied et al., HPG 2018: a temporal
-// gradient raises the blend weight, alpha' = (1 - lambda) alpha + lambda), with the gradient
-// estimated from the frames SVGF has, not from re-shaded samples: the difference of the current
-// frame's and the history's mean luminance over a window, less what the current frame's noise
-// explains, relative to the smaller of the two.
+// gradient lambda raises the current frame's blend weight a to (1 - lambda) a + lambda), with
+// the gradient estimated from the frames SVGF has, not from re-shaded samples: the difference of
+// the current frame's and the history's mean luminance over a window, less what the current
+// frame's noise explains, relative to the smaller of the two. The weight it raises is the history
+// length's, 1 / (hl + 1); TemporalAccumulation's alpha floor applies after, so a small lambda on
+// a long history changes nothing.
 #include <kestrel/Kestrel.h>
 
 class AntiLagPass final : public kestrel::Pass {
 public:
     static kestrel::PassDesc describe();
     explicit AntiLagPass(const kestrel::ParamValues& p);
+    void resolve(kestrel::ResolveContext& rc) override;
     void execute(kestrel::FrameContext& ctx, kestrel::PassIO& io) override;
+
+    static constexpr int kMaxRadius = 16;  ///< the radius parameter's bound
 
     struct Settings {
         int radius;   ///< window half-width in pixels
@@ -21,4 +26,5 @@ public:
 
 private:
     Settings s_;
+    bool enabled_;
 };

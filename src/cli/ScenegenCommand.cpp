@@ -71,10 +71,10 @@ void addScenegenCommand(CLI::App& app, Action& action) {
     cmd->add_flag("--static-camera", o->scene.staticCamera, "Keep the camera still");
     cmd->add_option("--camera-cut", o->scene.cameraCutFrame, "Frame at which the camera jumps");
     cmd->add_option("--light-change", o->scene.lightChangeFrame,
-                    "Street scenes: frame from which the sun (at night the lamp) shines at "
-                    "--light-scale of its strength");
+                    "Street scenes: frame from which the sun and the lamp shine at --light-scale "
+                    "of their strength (the sky unchanged)");
     cmd->add_option("--light-scale", o->scene.lightChangeScale,
-                    "Street scenes: the key light's strength from --light-change on (default 0.2)")
+                    "Street scenes: the lights' strength from --light-change on (default 0.2)")
         ->check(CLI::Range(0.0, 1e6));
     cmd->add_option("--pixel-filter", o->scene.pixelFilterWidth,
                     "Blackman-Harris pixel filter width in pixels (0: pixel centres; street "

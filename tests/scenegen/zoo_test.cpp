@@ -111,7 +111,7 @@ TEST(SceneZoo, EverySceneIsIdenticalWhateverTheThreadCount) {
         a.threads = 1;
         SceneOptions b = a;
         b.threads = 2;
-        const int frame = std::max(3, a.cameraCutFrame);
+        const int frame = std::max({3, a.cameraCutFrame, a.lightChangeFrame});
         const FrameAovs fa = renderFrame(a, frame), fb = renderFrame(b, frame);
         EXPECT_EQ(fa.color, fb.color) << z.name;
         EXPECT_EQ(fa.diffuse, fb.diffuse) << z.name;

@@ -54,8 +54,9 @@ struct PassDesc {
     /// this pass is that input's last reader this frame: the compiler then gives both one set of
     /// planes (saving the output's memory). The pass promises to be pointwise on that pair: it
     /// reads each pixel of the input before writing the same pixel of the output, and no other
-    /// pixel of the input (no neighbourhood). Kernels must not declare the two pointers
-    /// __restrict.
+    /// pixel of the input (no neighbourhood), except in an earlier phase of execute that has
+    /// finished before the first write (AntiLag reads every pixel's validity first). Kernels must
+    /// not declare the two pointers __restrict.
     PassDesc& inPlaceOf(std::string input);
 
     PassDesc& paramFloat(std::string name, double def, double min, double max, std::string desc);

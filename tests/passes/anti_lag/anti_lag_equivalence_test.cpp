@@ -1,6 +1,6 @@
 // Equivalence of the AntiLag pass, on every compiled SIMD target, with a plain per-pixel
 // reference (below: each pixel's window summed directly, row sums left to right, then rows top
-// to bottom, as the pass orders them) on random and extreme inputs, radii 1-4, 1-3 threads.
+// to bottom, as the pass orders them) on random and extreme inputs, radii 1-16, 1-3 threads.
 // Tolerance: exact (0 ulp): the pass is built without contraction and sums in a fixed order.
 #include <gtest/gtest.h>
 #include <kestrel/PixelMath.h>
@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <initializer_list>
 #include <limits>
 #include <random>
 #include <string>
@@ -67,7 +68,8 @@ float reference(const Image& color, const Image& history, const Image& length, i
     return l * (1.f - lambda) / (1.f + lambda * l);
 }
 
-void expectEquivalent(int w, int h, unsigned seed, float extremes) {
+void expectEquivalent(int w, int h, unsigned seed, float extremes,
+                      std::initializer_list<int> radii = {1, 2, 4}) {
     const Image color = modtest::randomImage(w, h, seed, 2.f, extremes);
     const Image history = modtest::randomImage(w, h, seed + 1, 2.f, extremes);
     Image length(w, h, Format::Float);
@@ -76,7 +78,7 @@ void expectEquivalent(int w, int h, unsigned seed, float extremes) {
     const float odd[] = {0.f, -1.f, NAN, INFINITY, 1e30f, 3e-39f};
     for (size_t i = 0; i < length.extent().pixels(); ++i)
         length.channel(0)[i] = u(rng) < 0.2f ? odd[int(u(rng) * 6) % 6] : 1.f + 30.f * u(rng);
-    for (int r : {1, 2, 4})
+    for (int r : radii)
         for (double sigma : {0.0, 4.0})
             for (int threads : {1, 2, 3}) {
                 SCOPED_TRACE(std::to_string(w) + "x" + std::to_string(h) + " radius " +
@@ -113,6 +115,13 @@ TEST_P(AntiLagEquivalence, RandomInputs) {
 
 TEST_P(AntiLagEquivalence, ExtremeInputs) {
     expectEquivalent(53, 37, 3, 0.1f);
+}
+
+// Tall enough that a thread's band holds many rows (the row ring is reused: bands are up to 16
+// rows, and only images of 128 rows or more get bands longer than one row), at the widest radius.
+TEST_P(AntiLagEquivalence, TallImagesReuseTheRowRing) {
+    expectEquivalent(5, 130, 6, 0.05f, {1, 3, 16});
+    expectEquivalent(65, 1040, 7, 0.f, {4});
 }
 
 TEST_P(AntiLagEquivalence, TinyImages) {

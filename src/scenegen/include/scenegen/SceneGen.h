@@ -35,10 +35,10 @@ struct SceneOptions {
     bool staticCamera = false;  ///< camera frozen at its frame-1 pose
     bool movingObject = true;   ///< the sliding sphere moves (else frozen at its frame-1 place)
     int cameraCutFrame = -1;    ///< from this frame on the camera jumps to a second viewpoint
-    /// From this frame on the street's key light, the sun (Street) or the lamp (StreetNight),
-    /// shines at lightChangeScale of its strength: a cloud, a light switched off (a scale > 1:
-    /// switched on). The geometry does not change, so only the lighting says the history is
-    /// stale. -1: no change. Street kinds only.
+    /// From this frame on the street's lights, the sun and the lamp (its visible head too), shine
+    /// at lightChangeScale of their strength: a cloud, a light switched off (a scale > 1:
+    /// switched on); the sky is unchanged. The geometry does not change, so only the lighting says
+    /// the history is stale. -1: no change. Street kinds only.
     int lightChangeFrame = -1;
     float lightChangeScale = 0.2f;
     /// Surface interactions per path, each with next-event estimation: 1 = direct light only,
