@@ -1,6 +1,10 @@
 // kestrel CLI, end to end: exit codes (0 ok, 1 runtime failure, 2 usage or graph error), one clear
 // error line per problem, help on every subcommand, the pass listing and the DOT export.
+#include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
 
 #include "CliRunner.h"
 
@@ -189,4 +193,29 @@ TEST(CliUsage, GraphDotShowsHistoryEdgesDashed) {
             dashedHistory = true;
     EXPECT_TRUE(dashedHistory) << r.out;
     expectClean(r);
+}
+
+// --light-change F --light-scale K changes a street scene's lights from frame F on (the frames
+// before are byte for byte the plain street's); the room, which has no such light, refuses it.
+TEST(CliUsage, ScenegenLightChangeFromItsFrameOn) {
+    Sandbox box;
+    auto gen = [&](const char* dir, std::vector<std::string> extra) {
+        std::vector<std::string> args{"scenegen", "--out",    dir, "--width", "16", "--height",
+                                      "12",       "--frames", "3", "--spp",   "2"};
+        args.insert(args.end(), extra.begin(), extra.end());
+        return box.run(args);
+    };
+    auto r = gen("plain", {"--scene", "street"});
+    ASSERT_EQ(r.code, 0) << r.all();
+    r = gen("dimmed", {"--scene", "street", "--light-change", "3", "--light-scale", "0"});
+    ASSERT_EQ(r.code, 0) << r.all();
+    auto bytes = [&](const std::string& f) {
+        std::ifstream in(box.work() / f, std::ios::binary);
+        return std::string(std::istreambuf_iterator<char>(in), {});
+    };
+    EXPECT_EQ(bytes("plain/ref/frame_0002.exr"), bytes("dimmed/ref/frame_0002.exr"));
+    EXPECT_NE(bytes("plain/ref/frame_0003.exr"), bytes("dimmed/ref/frame_0003.exr"));
+    r = gen("room", {"--light-change", "2"});
+    EXPECT_NE(r.code, 0);
+    expectOneError(r, {"room", "light change"});
 }
