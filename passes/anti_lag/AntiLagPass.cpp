@@ -175,8 +175,14 @@ void executeOnTarget(FrameContext& ctx, PassIO& io, AntiLagPass::Settings s) {
             for (int x = 0; x < w; ++x) vm[x >> 6] |= uint64_t(validLength(hl[x])) << (x & 63);
         }
     });
-    ctx.parallelRows(ctx.extent.height, [&](int y0, int y1) {
-        gateRows(color, history, valid, length, out, s, y0, y1);
+    // Bands of 64 rows: each band first sums the 2 radius rows around it, which rows split
+    // finer (the engine's chunks are as small as one row) would repeat several times over.
+    constexpr int kBand = 64;
+    const int h = ctx.extent.height, bands = (h + kBand - 1) / kBand;
+    ctx.parallelRows(bands, [&](int b0, int b1) {
+        for (int b = b0; b < b1; ++b)
+            gateRows(color, history, valid, length, out, s, b * kBand,
+                     std::min(h, (b + 1) * kBand));
     });
 }
 
