@@ -38,8 +38,7 @@ enum Term { N, C, C2, H, kTerms };
 using RowSums = std::array<float*, kTerms>;
 
 inline float luminance(float r, float g, float b) {
-    const float l =
-        0.2126f * px::sanitize(r) + 0.7152f * px::sanitize(g) + 0.0722f * px::sanitize(b);
+    const float l = px::luminance(px::sanitize(r), px::sanitize(g), px::sanitize(b));
     return std::max(l, 0.f);  // emission subtracted from a noisy colour can leave it below 0
 }
 
