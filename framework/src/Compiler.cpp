@@ -573,6 +573,10 @@ private:
         };
         std::set<int> freePlanes;
         int nextPlane = 0;
+        // Idle while step k runs: free after its outputs are placed, before its inputs are
+        // released (it still reads them), plus every plane first taken after step k.
+        std::vector<std::vector<int>> idle(static_cast<size_t>(end));
+        std::vector<int> firstUnused(static_cast<size_t>(end));
         for (int k = 0; k < end; ++k) {
             for (size_t r = 0; r < g_->resources.size(); ++r) {
                 auto& res = g_->resources[r];
@@ -594,6 +598,8 @@ private:
                     }
                 }
             }
+            idle[size_t(k)].assign(freePlanes.begin(), freePlanes.end());
+            firstUnused[size_t(k)] = nextPlane;
             for (size_t r = 0; r < g_->resources.size(); ++r) {
                 const auto& res = g_->resources[r];
                 if (!res.history && res.lastUse == k && !handedOver[r])
@@ -601,6 +607,10 @@ private:
             }
         }
         g_->transientPlanes = nextPlane;
+        for (int k = 0; k < end; ++k)
+            for (int pl = firstUnused[size_t(k)]; pl < nextPlane; ++pl)
+                idle[size_t(k)].push_back(pl);
+        g_->idlePlanes = std::move(idle);
     }
 
     const Registry& registry_;
@@ -635,6 +645,10 @@ int CompiledGraph::transientPlaneCount() const {
 }
 int CompiledGraph::unaliasedPlaneCount() const {
     return impl_->unaliasedPlanes;
+}
+const std::vector<int>& CompiledGraph::idlePlanes(size_t k) const {
+    static const std::vector<int> none;
+    return k < impl_->idlePlanes.size() ? impl_->idlePlanes[k] : none;
 }
 
 std::vector<std::string> CompiledGraph::executionOrder() const {

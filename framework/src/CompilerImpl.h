@@ -36,6 +36,9 @@ struct CompiledGraph::Impl {
     std::vector<ResourceInfo> resources;
     int transientPlanes = 0;
     int unaliasedPlanes = 0;
+    /// Per execution index: the transient planes no resource occupies while that pass runs
+    /// (PassIO::idlePlanes).
+    std::vector<std::vector<int>> idlePlanes;
     CompileReport report;
     std::vector<std::pair<int, int>> marked;  ///< (node, port) of marked outputs
     std::vector<std::string> markedNames;     ///< "pass.port" of each marked output

@@ -22,6 +22,7 @@ public:
     };
     std::vector<Slot> slots;
     std::string passName;
+    std::vector<float*> idle;  ///< PassIO::idlePlanes
 
     const Slot* find(std::string_view name, PortKind kind) const {
         for (const auto& s : slots)
@@ -56,6 +57,7 @@ public:
                         "', which nothing consumes (check hasOutput first)");
         return s->view;
     }
+    std::span<float* const> idlePlanes() const override { return idle; }
 };
 
 }  // namespace
@@ -145,6 +147,8 @@ struct Executor::Impl {
     void bind() {
         for (size_t k = 0; k < g.order.size(); ++k) {
             const NodeState& n = g.nodes[size_t(g.order[k])];
+            io[k].idle.clear();
+            for (int pl : graph.idlePlanes(k)) io[k].idle.push_back(transient[size_t(pl)].get());
             for (size_t p = 0; p < io[k].slots.size(); ++p) {
                 auto& slot = io[k].slots[p];
                 int r = n.portResource[p];

@@ -89,7 +89,7 @@ void floatsToIds(float* plane, size_t n, IdRule rule) {
 /// by OpenEXR. Throws what OpenEXR throws.
 void readChannels(ExrInput& in, const Box& dp, int W, size_t N,
                   const std::vector<std::pair<std::string, float*>>& chans,
-                  const std::vector<float>& fillv, int threads) {
+                  const std::vector<float>& fillv, int threads, const Workspace& lent = {}) {
     const Box dw = in.dataWindow();
     const bool covers = dw.x0 <= dp.x0 && dw.y0 <= dp.y0 && dw.x1 >= dp.x1 && dw.y1 >= dp.y1;
     const bool inside = dw.x0 >= dp.x0 && dw.y0 >= dp.y0 && dw.x1 <= dp.x1 && dw.y1 <= dp.y1;
@@ -100,7 +100,7 @@ void readChannels(ExrInput& in, const Box& dp, int W, size_t N,
     if (ix0 > ix1 || iy0 > iy1) return;  // no overlap: fill values only
     if (const ZipScanlines* zip = in.zip()) {
         std::string why;
-        if (zip->decode(dp, W, chans, fillv, threads, &why)) return;
+        if (zip->decode(dp, W, chans, fillv, threads, &why, nullptr, lent)) return;
         spdlog::debug("ExrLoader: {}: {}; reading it through OpenEXR", in.path(), why);
     }
     Imf::FrameBuffer fb;
@@ -913,8 +913,11 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
         std::vector<float> fillv;
         for (const auto& [name, plane] : chans) fillv.push_back(fills[{role, name}]);
         try {
+            // The chunk buffers in planes the graph's memory plan leaves idle while the loader
+            // runs, rather than in memory of their own on top of the plan's (docs/benchmarks.md).
+            const Workspace lent{io.idlePlanes(), ctx.extent.pixels() * sizeof(float)};
             readChannels(in, display_, W, N, chans, fillv,
-                         ctx.parallel ? ctx.parallel->threadCount() : 1);
+                         ctx.parallel ? ctx.parallel->threadCount() : 1, lent);
         } catch (const std::exception& e) {
             throw FrameError("frame " + std::to_string(frame_) + ": " + in.path() +
                              ": cannot read pixels (corrupt or truncated): " + e.what());

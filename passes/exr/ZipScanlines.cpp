@@ -185,6 +185,10 @@ struct Fd {
 struct ChunkBuffers {
     libdeflate_decompressor* inflater = libdeflate_alloc_decompressor();
     MappedBytes packed, unpacked;
+    /// Lent memory (Workspace) used instead of packed and unpacked where set: each holds a
+    /// whole chunk.
+    unsigned char* lentPacked = nullptr;
+    unsigned char* lentUnpacked = nullptr;
     ChunkBuffers() {
         if (!inflater) throw std::bad_alloc();
     }
@@ -264,7 +268,7 @@ bool ZipScanlines::decodeChunk(int fd, int chunk, const std::vector<float*>& dst
         *why = where() + ": the next chunk in the file is not where the offset table puts it";
         return false;
     }
-    unsigned char* packed = buf.packed.reserve(size_t(size));
+    unsigned char* packed = buf.lentPacked ? buf.lentPacked : buf.packed.reserve(size_t(size));
     if (!readAt(fd, off + 8, packed, size_t(size))) {
         *why = where() + ": short read";
         return false;
@@ -292,7 +296,7 @@ bool ZipScanlines::decodeChunk(int fd, int chunk, const std::vector<float*>& dst
         write(Plain{packed});
         return true;
     }
-    unsigned char* t = buf.unpacked.reserve(size_t(unpacked));
+    unsigned char* t = buf.lentUnpacked ? buf.lentUnpacked : buf.unpacked.reserve(size_t(unpacked));
     size_t got = 0;
     if (libdeflate_zlib_decompress(buf.inflater, packed, size_t(size), t, size_t(unpacked), &got) !=
             LIBDEFLATE_SUCCESS ||
@@ -308,7 +312,7 @@ bool ZipScanlines::decodeChunk(int fd, int chunk, const std::vector<float*>& dst
 bool ZipScanlines::decode(const Box& dp, int W,
                           const std::vector<std::pair<std::string, float*>>& chans,
                           const std::vector<float>& fill, int threads, std::string* why,
-                          Stats* stats) const {
+                          Stats* stats, const Workspace& lent) const {
     std::vector<float*> dst(channels_.size(), nullptr);
     for (size_t k = 0; k < chans.size(); ++k) {
         auto it = std::find_if(channels_.begin(), channels_.end(),
@@ -343,9 +347,16 @@ bool ZipScanlines::decode(const Box& dp, int W,
         std::lock_guard<std::mutex> g(whyLock);
         if (!failed.exchange(true)) *why = reason;
     };
-    auto work = [&] {  // never throws: it may run on a helper thread
+    // Threads that take two lent regions (packed and inflated): each must hold a whole chunk.
+    const uint64_t chunkBytes = uint64_t(linesPerChunk_) * bytesPerLine_;
+    const size_t lendable = lent.bytes >= chunkBytes ? lent.regions.size() / 2 : 0;
+    auto work = [&](size_t worker) {  // never throws: it may run on a helper thread
         try {
             ChunkBuffers buf;
+            if (worker < lendable) {
+                buf.lentPacked = reinterpret_cast<unsigned char*>(lent.regions[2 * worker]);
+                buf.lentUnpacked = reinterpret_cast<unsigned char*>(lent.regions[2 * worker + 1]);
+            }
             std::string mine;
             for (int c; !failed && (c = next++) <= last;) {
                 bool raw = false;
@@ -361,11 +372,11 @@ bool ZipScanlines::decode(const Box& dp, int W,
         }
     };
     try {
-        for (int i = 0; i < helpers; ++i) pool.emplace_back(work);
+        for (int i = 0; i < helpers; ++i) pool.emplace_back(work, size_t(i) + 1);
     } catch (...) {
         // no more threads: the ones started and this one share the chunks
     }
-    work();
+    work(0);
     for (auto& t : pool) t.join();
     if (stats) *stats = {decoded, stored};
     return !failed;

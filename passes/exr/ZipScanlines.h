@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -20,6 +21,14 @@
 #include "Box.h"
 
 namespace kestrel::exr {
+
+/// Memory a caller lends for the chunk buffers (the loader's PassIO::idlePlanes): regions of
+/// `bytes` each. A decoding thread takes two (packed and inflated chunk) where they hold a
+/// chunk, else maps its own.
+struct Workspace {
+    std::span<float* const> regions;
+    size_t bytes = 0;
+};
 
 class ZipScanlines {
 public:
@@ -40,7 +49,7 @@ public:
     };
     bool decode(const Box& dp, int W, const std::vector<std::pair<std::string, float*>>& chans,
                 const std::vector<float>& fill, int threads, std::string* why,
-                Stats* stats = nullptr) const;
+                Stats* stats = nullptr, const Workspace& lent = {}) const;
 
     struct Channel {
         std::string name;

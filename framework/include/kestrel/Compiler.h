@@ -29,10 +29,10 @@ struct LeftOutPass {
 };
 
 struct CompileReport {
-    std::vector<std::string> notes;   ///< adaptation notes from resolve()
-    std::vector<LeftOutPass> pruned;  ///< contributes to no output
-    std::vector<LeftOutPass> elided;  ///< identity for this scene (outputs forwarded)
-    std::vector<std::string> absent;  ///< "pass.port: reason" outputs the scene lacks
+    std::vector<std::string> notes;            ///< adaptation notes from resolve()
+    std::vector<LeftOutPass> pruned;           ///< contributes to no output
+    std::vector<LeftOutPass> elided;           ///< identity for this scene (outputs forwarded)
+    std::vector<std::string> absent;           ///< "pass.port: reason" outputs the scene lacks
     std::map<std::string, std::string> facts;  ///< scene facts sources stated (ResolveContext)
 };
 
@@ -74,6 +74,8 @@ public:
     int transientPlaneCount() const;
     /// Planes the resources would need without aliasing.
     int unaliasedPlaneCount() const;
+    /// The transient planes idle while the pass at execution index k runs (PassIO::idlePlanes).
+    const std::vector<int>& idlePlanes(size_t k) const;
     /// Graphviz DOT: live and pruned passes, history edges dashed, shared memory noted.
     std::string toDot() const;
     /// Compact JSON of the passes and their effective parameters (provenance).

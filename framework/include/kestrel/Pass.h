@@ -9,6 +9,7 @@
 // must survive to the next frame flows through history edges.
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -124,6 +125,12 @@ public:
     /// Whether anyone consumes this output (unused outputs are not allocated).
     virtual bool hasOutput(std::string_view name) const = 0;
     virtual const ImageView& output(std::string_view name) = 0;
+    /// Working memory that costs nothing: the transient planes of the memory plan that no
+    /// resource occupies while this pass runs (Frostbite's frame graph aliases a pass's scratch
+    /// the same way). Each holds FrameContext::extent.pixels() floats, 64-byte aligned; contents
+    /// are undefined on entry and belong to later passes after execute returns, so use them only
+    /// within execute, on its own threads. Empty where the plan has no idle plane (and in tests).
+    virtual std::span<float* const> idlePlanes() const { return {}; }
 };
 
 /// The relative step of the scene's stored depth (the fact kDepthPrecisionFact, clamped to

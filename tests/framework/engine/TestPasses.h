@@ -7,7 +7,9 @@
 #include <kestrel/Graph.h>
 #include <kestrel/Kestrel.h>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 
 namespace kestrel::enginetest {
@@ -93,6 +95,27 @@ public:
         const ImageView& o = io.output("out");
         for (size_t i = 0; i < o.pixels(); ++i) o.channel(0)[i] = in.channel(0)[i] + 1.f;
     }
+};
+
+/// out = in + 1, after filling every idle plane it is lent (PassIO::idlePlanes) with NaN: a
+/// plane wrongly counted idle corrupts a resource some pass still reads. Counts the planes.
+class ScribbleIdlePass : public Pass {
+public:
+    static PassDesc describe() {
+        return PassDesc("ScribbleIdle", "in + 1, with NaN in every idle plane")
+            .input("in", Format::Float, "input")
+            .output("out", Format::Float, "in + 1");
+    }
+    explicit ScribbleIdlePass(const ParamValues&) {}
+    void execute(FrameContext& ctx, PassIO& io) override {
+        lastIdleCount = io.idlePlanes().size();
+        for (float* plane : io.idlePlanes())
+            std::fill(plane, plane + ctx.extent.pixels(), std::numeric_limits<float>::quiet_NaN());
+        const ImageView& in = io.input("in");
+        const ImageView& o = io.output("out");
+        for (size_t i = 0; i < o.pixels(); ++i) o.channel(0)[i] = in.channel(0)[i] + 1.f;
+    }
+    static inline size_t lastIdleCount = 0;
 };
 
 /// out = 2 in + 1 (+ other when bound), pointwise, declared in place of `in`: the compiler may
@@ -348,6 +371,7 @@ inline Registry testRegistry() {
     r.add<SinkPass>();
     r.add<ColorPass>();
     r.add<RowWorkPass>();
+    r.add<ScribbleIdlePass>();
     return r;
 }
 

@@ -102,6 +102,70 @@ TEST(Memory, ResourceIsKeptUntilItsLastReader) {
         }
 }
 
+std::string scaleChain(int count, bool alsoRead);
+
+// The graph of ResourceIsKeptUntilItsLastReader with `mid` (a pass type) between avg and c.
+std::string keptGraph(const std::string& mid) {
+    return R"({"kestrel": 1, "passes": [{"name": "ramp", "type": "Ramp"},
+        {"name": "b", "type": "AddOne"}, {"name": "avg", "type": "NeighbourAverage"},
+        {"name": "mid", "type": ")" +
+           mid + R"("}, {"name": "c", "type": "AddOne"}, {"name": "sum", "type": "Sum"}],
+        "edges": [{"from": "ramp.out", "to": "b.in"}, {"from": "b.out", "to": "avg.in"},
+                  {"from": "avg.out", "to": "mid.in"}, {"from": "mid.out", "to": "c.in"},
+                  {"from": "c.out", "to": "sum.a"}, {"from": "ramp.out", "to": "sum.b"}],
+        "outputs": ["sum.out"]})";
+}
+
+TEST(Memory, IdlePlanesAreExactlyThoseNoLiveResourceHolds) {
+    Registry r = testRegistry();
+    for (const std::string& json : {keptGraph("AddOne"), chainGraph(6), scaleChain(4, true)}) {
+        auto g = compileText(json, r);
+        const size_t steps = g->executionOrder().size();
+        for (size_t k = 0; k < steps; ++k) {
+            std::vector<int> holder(size_t(g->transientPlaneCount()), 0);
+            for (const auto& res : g->resources())
+                if (!res.history && res.firstUse <= int(k) && int(k) <= res.lastUse)
+                    for (int pl : res.planes) holder[size_t(pl)] = 1;
+            for (int pl : g->idlePlanes(k)) {
+                EXPECT_EQ(holder[size_t(pl)], 0) << json << "\nstep " << k << ": plane " << pl;
+                holder[size_t(pl)] = 2;
+            }
+            for (size_t pl = 0; pl < holder.size(); ++pl)
+                EXPECT_NE(holder[pl], 0)
+                    << json << "\nstep " << k << ": plane " << pl << " neither held nor idle";
+        }
+    }
+}
+
+TEST(Memory, APassMayOverwriteItsIdlePlanes) {
+    Registry r = testRegistry();
+    // Four planes while `both` runs (ramp, b, c, both.out); b and c are dead after it, so one
+    // plane is idle while `mid` runs (ramp, both.out and mid.out held).
+    auto g = compileText(R"({"kestrel": 1, "passes": [{"name": "ramp", "type": "Ramp"},
+        {"name": "b", "type": "AddOne"}, {"name": "c", "type": "AddOne"},
+        {"name": "both", "type": "Sum"}, {"name": "mid", "type": "ScribbleIdle"},
+        {"name": "sum", "type": "Sum"}],
+        "edges": [{"from": "ramp.out", "to": ["b.in", "c.in", "sum.b"]},
+                  {"from": "b.out", "to": "both.a"}, {"from": "c.out", "to": "both.b"},
+                  {"from": "both.out", "to": "mid.in"}, {"from": "mid.out", "to": "sum.a"}],
+        "outputs": ["sum.out"]})",
+                         r);
+    EXPECT_EQ(g->transientPlaneCount(), 4);
+    Parallel par(1);
+    Executor ex(*g, par, {}, Extent{4, 2});
+    for (int frame = 1; frame <= 2; ++frame) {
+        ScribbleIdlePass::lastIdleCount = 0;
+        ex.runFrame(frame);
+        EXPECT_EQ(ScribbleIdlePass::lastIdleCount, 1u);
+        ImageView out = ex.output("sum.out");
+        for (int y = 0; y < 2; ++y)
+            for (int x = 0; x < 4; ++x) {
+                const float ramp = float(x + 10 * y);
+                EXPECT_EQ(out.at(0, x, y), (2.f * (ramp + 1.f) + 1.f) + ramp) << x << "," << y;
+            }
+    }
+}
+
 TEST(Memory, MultiChannelResourcesGetDistinctPlanesPerChannel) {
     Registry r = testRegistry();
     auto g = compileText(R"({"kestrel": 1, "passes": [{"name": "c", "type": "Color"}],

@@ -125,7 +125,7 @@ Planes readByOpenExr(const std::string& path, const Box& dp) {
 }
 
 Planes readFast(const std::string& path, const Box& dp, int threads, ZipScanlines::Stats* stats,
-                bool* ok = nullptr, std::string* why = nullptr) {
+                bool* ok = nullptr, std::string* why = nullptr, const Workspace& lent = {}) {
     ExrInput in(path, int64_t(1) << 27);
     EXPECT_NE(in.zip(), nullptr) << path;
     const int W = int(dp.width());
@@ -135,7 +135,8 @@ Planes readFast(const std::string& path, const Box& dp, int threads, ZipScanline
     std::vector<std::pair<std::string, float*>> chans = {
         {"b", p[0].data()}, {"a", p[1].data()}, {"c", p[2].data()}, {"missing", p[3].data()}};
     std::string reason;
-    const bool good = in.zip()->decode(dp, W, chans, {0.f, 0.f, 0.f, 7.f}, threads, &reason, stats);
+    const bool good =
+        in.zip()->decode(dp, W, chans, {0.f, 0.f, 0.f, 7.f}, threads, &reason, stats, lent);
     if (ok) *ok = good;
     if (why) *why = reason;
     if (!ok) {
@@ -218,6 +219,38 @@ TEST(ZipScanlines, SameBitsAsOpenExrForEveryLayout) {
             expectSameBits(want, got,
                            std::string(c.what) + ", " + std::to_string(threads) + " threads");
         }
+    }
+}
+
+TEST(ZipScanlines, DecodesInLentMemoryWhereARegionHoldsAChunk) {
+    // The loader lends the graph's idle planes (PassIO::idlePlanes): two per decoding thread
+    // where each holds a chunk (16 lines of a, b, c, d: 14 bytes per pixel), else the thread
+    // maps its own buffers. Same bits either way.
+    TempDir dir("ziplent");
+    const std::string path = (dir.path / "f.exr").string();
+    Spec s{Imf::ZIP_COMPRESSION, {{0, 0}, {299, 39}}, {{0, 0}, {299, 39}}};
+    s.mixed = true;  // deflated chunks: both buffers in use
+    writeFile(path, s);
+    const Box dp = toBox(s.display);
+    const Planes want = readByOpenExr(path, dp);
+    const size_t chunkBytes = 16 * 300 * 14;
+    constexpr float kSentinel = -12345.f;
+    for (const size_t regionFloats : {chunkBytes / 4, chunkBytes / 4 - 1}) {
+        std::vector<std::vector<float>> regions(5, std::vector<float>(regionFloats, kSentinel));
+        std::vector<float*> pointers;
+        for (auto& r : regions) pointers.push_back(r.data());
+        const Workspace lent{pointers, regionFloats * sizeof(float)};
+        ZipScanlines::Stats stats;
+        expectSameBits(want, readFast(path, dp, 3, &stats, nullptr, nullptr, lent),
+                       std::to_string(regionFloats) + " floats per region");
+        EXPECT_EQ(stats.stored, 0);
+        const bool fits = regionFloats * sizeof(float) >= chunkBytes;
+        // Threads 0 and 1 decode in regions 0-3 when they fit (thread 2 has no pair and maps
+        // its own; which thread takes which chunk varies); region 4 is never lent.
+        size_t written = 0;
+        for (size_t k = 0; k < 4; ++k) written += regions[k][0] != kSentinel;
+        EXPECT_EQ(written > 0, fits) << regionFloats << " floats per region";
+        EXPECT_EQ(regions[4][0], kSentinel);
     }
 }
 
