@@ -225,7 +225,7 @@ void ExrWriter::execute(FrameContext& ctx, PassIO& io) {
     if (!ctx.writeOutputs) return;
     const ImageView& img = io.input("color");
     std::string file = path_.expand(ctx.frameNumber);
-    writeExr(img, file, ctx);
+    writeExr(img, file, ctx, {io.idlePlanes(), ctx.extent.pixels() * sizeof(float)});
     if (preview_) {
         std::string png = preview_->expand(ctx.frameNumber);
         std::string tmp = tempName(png);
@@ -241,7 +241,8 @@ void ExrWriter::execute(FrameContext& ctx, PassIO& io) {
     }
 }
 
-void ExrWriter::writeExr(const ImageView& img, const std::string& file, const FrameContext& ctx) {
+void ExrWriter::writeExr(const ImageView& img, const std::string& file, const FrameContext& ctx,
+                         const Workspace& lent) {
     const int W = img.width(), H = img.height();
     const size_t N = img.pixels();
     const bool ids = img.format == Format::Int32;
@@ -314,7 +315,7 @@ void ExrWriter::writeExr(const ImageView& img, const std::string& file, const Fr
                 hook = [this, frame](size_t chunk) {
                     if (chunk == 1) injectFault("chunk", frame);  // after one chunk is on disk
                 };
-            writeZipScanlines(tmp, header, rows, threads, zipLevel_, hook);
+            writeZipScanlines(tmp, header, rows, threads, zipLevel_, hook, lent);
         } else {
             if (asHalf)
                 halfScratch_.resize(N * size_t(C));

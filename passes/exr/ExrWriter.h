@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "PngPreview.h"
+#include "Workspace.h"
 #include "kestrel/FramePattern.h"
 #include "kestrel/Kestrel.h"
 
@@ -25,7 +26,9 @@ public:
     bool frameWritten(int64_t frame) const override;
 
 private:
-    void writeExr(const ImageView& img, const std::string& path, const FrameContext& ctx);
+    /// `lent`: the writer's idle planes (PassIO::idlePlanes), for the ZIP encoder's chunk buffers.
+    void writeExr(const ImageView& img, const std::string& path, const FrameContext& ctx,
+                  const Workspace& lent);
     /// Warns (once per run each) of the values written as 0 (NaN) or clamped to the range.
     void warnSanitised(int64_t frameNumber, size_t nans, size_t clamped, bool asHalf, float limit);
     /// Throws when KESTREL_TEST_WRITE_FAULT names this step and frame (tests only).

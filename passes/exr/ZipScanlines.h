@@ -13,22 +13,14 @@
 
 #include <cstdint>
 #include <memory>
-#include <span>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "Box.h"
+#include "Workspace.h"
 
 namespace kestrel::exr {
-
-/// Memory a caller lends for the chunk buffers (the loader's PassIO::idlePlanes): regions of
-/// `bytes` each. A decoding thread takes two (packed and inflated chunk) where they hold a
-/// chunk, else maps its own.
-struct Workspace {
-    std::span<float* const> regions;
-    size_t bytes = 0;
-};
 
 class ZipScanlines {
 public:
@@ -47,6 +39,8 @@ public:
         int chunks = 0;  ///< chunks decoded
         int stored = 0;  ///< of which stored uncompressed (deflate did not shrink them)
     };
+    /// `lent`: a decoding thread takes two regions (packed and inflated chunk) where each holds
+    /// a chunk, else maps its own buffers.
     bool decode(const Box& dp, int W, const std::vector<std::pair<std::string, float*>>& chans,
                 const std::vector<float>& fill, int threads, std::string* why,
                 Stats* stats = nullptr, const Workspace& lent = {}) const;

@@ -37,7 +37,9 @@ bool longNames(const Imf::Header& h) {
 
 struct Encoder {
     libdeflate_compressor* deflater;
-    std::vector<unsigned char> raw, split, out;
+    std::vector<unsigned char> rawOwned, splitOwned;
+    unsigned char* raw = nullptr;    ///< a chunk's scan lines as stored
+    unsigned char* split = nullptr;  ///< its bytes split and predicted, what deflate reads
     explicit Encoder(int level) : deflater(libdeflate_alloc_compressor(level)) {
         if (!deflater) throw std::bad_alloc();
     }
@@ -50,7 +52,7 @@ struct Encoder {
 
 void writeZipScanlines(const std::string& path, const Imf::Header& header,
                        const std::vector<const void*>& planes, int threads, int level,
-                       const ZipChunkHook& afterChunk) {
+                       const ZipChunkHook& afterChunk, const Workspace& lent) {
     const Imath::Box2i dw = header.dataWindow();
     const size_t W = size_t(std::max(dw.max.x - dw.min.x + 1, 0));
     std::vector<size_t> rowBytes;
@@ -64,11 +66,12 @@ void writeZipScanlines(const std::string& path, const Imf::Header& header,
         std::memcpy(dst, static_cast<const unsigned char*>(planes[c]) + row * rowBytes[c],
                     rowBytes[c]);
     };
-    writeZipScanlines(path, header, rows, threads, level, afterChunk);
+    writeZipScanlines(path, header, rows, threads, level, afterChunk, lent);
 }
 
 void writeZipScanlines(const std::string& path, const Imf::Header& header, const ZipRowSource& rows,
-                       int threads, int level, const ZipChunkHook& afterChunk) {
+                       int threads, int level, const ZipChunkHook& afterChunk,
+                       const Workspace& lent) {
     const Imf::Compression compression = header.compression();
     if (compression != Imf::ZIP_COMPRESSION && compression != Imf::ZIPS_COMPRESSION)
         throw Error("writeZipScanlines: the header's compression is not ZIP or ZIPS");
@@ -102,11 +105,44 @@ void writeZipScanlines(const std::string& path, const Imf::Header& header, const
     const int workers =
         std::clamp(int(std::min<size_t>(size_t(std::max(threads, 1)), chunks)), 1, 64);
     // A batch of chunks is encoded at once, then written: a few per worker keep them busy while
-    // only the batch's encoded bytes are held (not the whole frame's).
-    const size_t batch = size_t(workers) * 4;
-    std::vector<std::vector<unsigned char>> encoded(std::min(batch, chunks));
+    // only the batch's encoded bytes are held (not the whole frame's). Each chunk is deflated
+    // straight into its slot of the batch. Buffers: two per worker and one per slot, each a
+    // chunk's size, in lent regions when there are enough of them that hold a chunk.
+    const size_t chunkBytes = lines * bytesPerLine;
+    const size_t want = size_t(workers) * 4;
+    const size_t lendable = lent.bytes >= chunkBytes ? lent.regions.size() : 0;
+    const bool useLent = lendable >= size_t(workers) * 3;
+    const size_t batch =
+        std::min(useLent ? std::min(want, lendable - size_t(workers) * 2) : want, chunks);
+    auto region = [&](size_t i) { return reinterpret_cast<unsigned char*>(lent.regions[i]); };
     std::vector<std::unique_ptr<Encoder>> encoders(static_cast<size_t>(workers));
-    for (auto& e : encoders) e = std::make_unique<Encoder>(std::clamp(level, 1, 12));
+    for (size_t w = 0; w < encoders.size(); ++w) {
+        auto& e = encoders[w];
+        e = std::make_unique<Encoder>(std::clamp(level, 1, 12));
+        if (useLent) {
+            e->raw = region(2 * w);
+            e->split = region(2 * w + 1);
+        } else {
+            e->rawOwned.resize(chunkBytes);
+            e->splitOwned.resize(chunkBytes);
+            e->raw = e->rawOwned.data();
+            e->split = e->splitOwned.data();
+        }
+    }
+    struct Slot {
+        unsigned char* data = nullptr;
+        size_t size = 0;
+        std::vector<unsigned char> owned;
+    };
+    std::vector<Slot> encoded(batch);
+    for (size_t k = 0; k < batch; ++k) {
+        if (useLent) {
+            encoded[k].data = region(size_t(workers) * 2 + k);
+        } else {
+            encoded[k].owned.resize(chunkBytes);
+            encoded[k].data = encoded[k].owned.data();
+        }
+    }
     auto encodeBatch = [&](size_t first, size_t count) {
         std::atomic<size_t> next{0};
         std::atomic<bool> failed{false};
@@ -117,17 +153,14 @@ void writeZipScanlines(const std::string& path, const Imf::Header& header, const
                 for (size_t k; !failed && (k = next++) < count;) {
                     const size_t i = first + k;
                     const size_t lines0 = std::min(lines, H - i * lines), n = lines0 * bytesPerLine;
-                    e.raw.resize(n);
-                    e.split.resize(n);
-                    e.out.resize(n);
-                    unsigned char* r = e.raw.data();
+                    unsigned char* r = e.raw;
                     for (size_t l = 0; l < lines0; ++l)
                         for (size_t c = 0; c < chans.size(); ++c) {
                             rows(c, i * lines + l, r);
                             r += chans[c];
                         }
                     const size_t half = (n + 1) / 2;
-                    unsigned char *lo = e.split.data(), *hi = lo + half;
+                    unsigned char *lo = e.split, *hi = lo + half;
                     for (size_t j = 0; j < n / 2; ++j) {
                         lo[j] = e.raw[2 * j];
                         hi[j] = e.raw[2 * j + 1];
@@ -137,12 +170,12 @@ void writeZipScanlines(const std::string& path, const Imf::Header& header, const
                     // it as it was); `raw` stays for a chunk deflate does not shrink.
                     for (size_t j = n - 1; j > 0; --j)
                         e.split[j] = static_cast<unsigned char>(e.split[j] - e.split[j - 1] + 128);
-                    const size_t size = libdeflate_zlib_compress(e.deflater, e.split.data(), n,
-                                                                 e.out.data(), n - 1);
-                    if (size > 0)
-                        encoded[k].assign(e.out.begin(), e.out.begin() + ptrdiff_t(size));
-                    else  // not smaller: the scan lines as they are
-                        encoded[k] = e.raw;
+                    Slot& slot = encoded[k];
+                    slot.size = libdeflate_zlib_compress(e.deflater, e.split, n, slot.data, n - 1);
+                    if (slot.size == 0) {  // not smaller: the scan lines as they are
+                        std::memcpy(slot.data, e.raw, n);
+                        slot.size = n;
+                    }
                 }
             } catch (const std::exception& ex) {
                 std::lock_guard<std::mutex> g(failureLock);
@@ -184,9 +217,9 @@ void writeZipScanlines(const std::string& path, const Imf::Header& header, const
                 for (int j = 0; j < 8; ++j)
                     offsets[i * 8 + size_t(j)] = static_cast<unsigned char>(at >> (8 * j));
                 putLE32(b, uint32_t(int32_t(dw.min.y + int(i * lines))));
-                putLE32(b + 4, uint32_t(encoded[k].size()));
+                putLE32(b + 4, uint32_t(encoded[k].size));
                 os.write(reinterpret_cast<const char*>(b), 8);
-                os.write(reinterpret_cast<const char*>(encoded[k].data()), int(encoded[k].size()));
+                os.write(reinterpret_cast<const char*>(encoded[k].data), int(encoded[k].size));
                 if (afterChunk) {
                     // The chunks so far are in the file, as a failing disk leaves them.
                     file.flush();

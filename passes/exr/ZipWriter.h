@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "Workspace.h"
+
 namespace kestrel::exr {
 
 /// Called after each chunk is written with the number written so far (tests inject faults).
@@ -26,14 +28,16 @@ using ZipRowSource = std::function<void(size_t channel, size_t row, unsigned cha
 /// `level`: deflate level, 1 (fastest) to 12 (smallest). Throws what the stream throws on I/O
 /// errors, what `rows` throws, and Error for a header it cannot write (not ZIP/ZIPS, or a
 /// channel of another type). The file is closed, not flushed to disk: the caller fsyncs before
-/// renaming it.
+/// renaming it. `lent`: where it has two regions per thread and one per chunk of the batch,
+/// each holding a chunk, the chunk buffers live there instead of in memory of their own.
 void writeZipScanlines(const std::string& path, const Imf::Header& header, const ZipRowSource& rows,
-                       int threads, int level, const ZipChunkHook& afterChunk = {});
+                       int threads, int level, const ZipChunkHook& afterChunk = {},
+                       const Workspace& lent = {});
 
 /// The same from `planes`: one per channel of `header`, in the header's order, each the data
 /// window's width x height values of the channel's type (HALF or FLOAT), row by row.
 void writeZipScanlines(const std::string& path, const Imf::Header& header,
                        const std::vector<const void*>& planes, int threads, int level,
-                       const ZipChunkHook& afterChunk = {});
+                       const ZipChunkHook& afterChunk = {}, const Workspace& lent = {});
 
 }  // namespace kestrel::exr

@@ -528,6 +528,49 @@ TEST(ZipWriter, OutputDoesNotDependOnTheThreadCountAndItsOwnReaderAgrees) {
     }
 }
 
+TEST(ZipWriter, EncodesInLentMemoryWhenThereIsEnoughOfIt) {
+    // The writer's chunk buffers (two per thread, one per chunk of a batch) go in the regions the
+    // ExrWriter lends (its idle planes) when there are enough that hold a chunk: 16 lines of two
+    // half channels, 123 wide. Same bytes either way.
+    TempDir dir("ziplentw");
+    Imf::Header h(123, 77);
+    h.compression() = Imf::ZIP_COMPRESSION;
+    h.channels().insert("B", Imf::Channel(Imf::HALF));
+    h.channels().insert("G", Imf::Channel(Imf::HALF));
+    std::vector<uint16_t> b(123 * 77), g(123 * 77);
+    for (size_t i = 0; i < b.size(); ++i) {
+        b[i] = Imath::half(float(i % 123) * 0.1f).bits();
+        g[i] = Imath::half(1.f / float(1 + i)).bits();
+    }
+    auto write = [&](const std::string& name, const Workspace& lent) {
+        const std::string path = (dir.path / name).string();
+        writeZipScanlines(path, h, {b.data(), g.data()}, 2, 4, {}, lent);
+        std::ifstream f(path, std::ios::binary);
+        return std::string(std::istreambuf_iterator<char>(f), {});
+    };
+    const std::string plain = write("plain.exr", {});
+    const size_t chunkFloats = 16 * 123 * 4 / 4;
+    constexpr float kSentinel = -12345.f;
+    struct Case {
+        size_t regions, floats;
+        bool used;
+    };
+    // Two threads need 2 x 2 + 2 regions at least (a batch of two chunks); smaller regions or
+    // fewer of them are not used.
+    for (const Case c : {Case{12, chunkFloats, true}, Case{6, chunkFloats, true},
+                         Case{5, chunkFloats, false}, Case{12, chunkFloats - 1, false}}) {
+        std::vector<std::vector<float>> regions(c.regions, std::vector<float>(c.floats, kSentinel));
+        std::vector<float*> pointers;
+        for (auto& r : regions) pointers.push_back(r.data());
+        const std::string what =
+            std::to_string(c.regions) + " regions of " + std::to_string(c.floats) + " floats";
+        EXPECT_EQ(write("lent.exr", {pointers, c.floats * sizeof(float)}), plain) << what;
+        size_t written = 0;
+        for (const auto& r : regions) written += r[0] != kSentinel;
+        EXPECT_EQ(written > 0, c.used) << what;
+    }
+}
+
 // The writer streams: a scan line is asked for when its chunk is encoded, and chunks are written a
 // batch at a time (a few per thread), so it never holds a frame-sized copy or the whole frame's
 // encoded chunks. When the first chunk is on disk, only the first batch's rows were asked for;
