@@ -489,17 +489,26 @@ TEST(ZipWriter, OpenExrReadsBackEveryValue) {
     roundTrip(path, 64, 48, Imf::ZIP_COMPRESSION, 1, 12, rgba, false);
 }
 
+/// A 123 x 77 ZIP image of two HALF channels: B a ramp along x, G falling with the index.
+struct HalfImage {
+    Imf::Header header{123, 77};
+    std::vector<uint16_t> b = std::vector<uint16_t>(123 * 77), g = std::vector<uint16_t>(123 * 77);
+    HalfImage() {
+        header.compression() = Imf::ZIP_COMPRESSION;
+        header.channels().insert("B", Imf::Channel(Imf::HALF));
+        header.channels().insert("G", Imf::Channel(Imf::HALF));
+        for (size_t i = 0; i < b.size(); ++i) {
+            b[i] = Imath::half(float(i % 123) * 0.1f).bits();
+            g[i] = Imath::half(1.f / float(1 + i)).bits();
+        }
+    }
+};
+
 TEST(ZipWriter, OutputDoesNotDependOnTheThreadCountAndItsOwnReaderAgrees) {
     TempDir dir("zipwrite2");
-    Imf::Header h(123, 77);
-    h.compression() = Imf::ZIP_COMPRESSION;
-    h.channels().insert("B", Imf::Channel(Imf::HALF));
-    h.channels().insert("G", Imf::Channel(Imf::HALF));
-    std::vector<uint16_t> b(123 * 77), g(123 * 77);
-    for (size_t i = 0; i < b.size(); ++i) {
-        b[i] = Imath::half(float(i % 123) * 0.1f).bits();
-        g[i] = Imath::half(1.f / float(1 + i)).bits();
-    }
+    const HalfImage img;
+    const Imf::Header& h = img.header;
+    const std::vector<uint16_t>&b = img.b, &g = img.g;
     std::string bytes[2];
     int k = 0;
     for (int threads : {1, 4}) {
@@ -533,15 +542,9 @@ TEST(ZipWriter, EncodesInLentMemoryWhenThereIsEnoughOfIt) {
     // ExrWriter lends (its idle planes) when there are enough that hold a chunk: 16 lines of two
     // half channels, 123 wide. Same bytes either way.
     TempDir dir("ziplentw");
-    Imf::Header h(123, 77);
-    h.compression() = Imf::ZIP_COMPRESSION;
-    h.channels().insert("B", Imf::Channel(Imf::HALF));
-    h.channels().insert("G", Imf::Channel(Imf::HALF));
-    std::vector<uint16_t> b(123 * 77), g(123 * 77);
-    for (size_t i = 0; i < b.size(); ++i) {
-        b[i] = Imath::half(float(i % 123) * 0.1f).bits();
-        g[i] = Imath::half(1.f / float(1 + i)).bits();
-    }
+    const HalfImage img;
+    const Imf::Header& h = img.header;
+    const std::vector<uint16_t>&b = img.b, &g = img.g;
     auto write = [&](const std::string& name, const Workspace& lent) {
         const std::string path = (dir.path / name).string();
         writeZipScanlines(path, h, {b.data(), g.data()}, 2, 4, {}, lent);
