@@ -133,6 +133,10 @@ struct Executor::Impl {
                 }
             }
         }
+        for (size_t k = 0; k < g.order.size(); ++k) {  // PassIO::idlePlanes
+            io[k].idle.clear();
+            for (int pl : graph.idlePlanes(k)) io[k].idle.push_back(transient[size_t(pl)].get());
+        }
         memory.transientPlanes = size_t(g.transientPlanes);
         memory.historyPlanes = histPlanes;
         memory.markedPlanes = 0;
@@ -147,8 +151,6 @@ struct Executor::Impl {
     void bind() {
         for (size_t k = 0; k < g.order.size(); ++k) {
             const NodeState& n = g.nodes[size_t(g.order[k])];
-            io[k].idle.clear();
-            for (int pl : graph.idlePlanes(k)) io[k].idle.push_back(transient[size_t(pl)].get());
             for (size_t p = 0; p < io[k].slots.size(); ++p) {
                 auto& slot = io[k].slots[p];
                 int r = n.portResource[p];

@@ -37,7 +37,7 @@ bool longNames(const Imf::Header& h) {
 
 struct Encoder {
     libdeflate_compressor* deflater;
-    std::vector<unsigned char> rawOwned, splitOwned;
+    std::unique_ptr<unsigned char[]> rawOwned, splitOwned;
     unsigned char* raw = nullptr;    ///< a chunk's scan lines as stored
     unsigned char* split = nullptr;  ///< its bytes split and predicted, what deflate reads
     explicit Encoder(int level) : deflater(libdeflate_alloc_compressor(level)) {
@@ -123,24 +123,25 @@ void writeZipScanlines(const std::string& path, const Imf::Header& header, const
             e->raw = region(2 * w);
             e->split = region(2 * w + 1);
         } else {
-            e->rawOwned.resize(chunkBytes);
-            e->splitOwned.resize(chunkBytes);
-            e->raw = e->rawOwned.data();
-            e->split = e->splitOwned.data();
+            e->rawOwned = std::make_unique_for_overwrite<unsigned char[]>(chunkBytes);
+            e->splitOwned = std::make_unique_for_overwrite<unsigned char[]>(chunkBytes);
+            e->raw = e->rawOwned.get();
+            e->split = e->splitOwned.get();
         }
     }
     struct Slot {
         unsigned char* data = nullptr;
         size_t size = 0;
-        std::vector<unsigned char> owned;
+        std::unique_ptr<unsigned char[]> owned;
     };
     std::vector<Slot> encoded(batch);
     for (size_t k = 0; k < batch; ++k) {
         if (useLent) {
             encoded[k].data = region(size_t(workers) * 2 + k);
         } else {
-            encoded[k].owned.resize(chunkBytes);
-            encoded[k].data = encoded[k].owned.data();
+            // Not zero-filled: only the bytes a chunk encodes to are written (and resident).
+            encoded[k].owned = std::make_unique_for_overwrite<unsigned char[]>(chunkBytes);
+            encoded[k].data = encoded[k].owned.get();
         }
     }
     auto encodeBatch = [&](size_t first, size_t count) {

@@ -2,22 +2,12 @@
 #include <algorithm>
 #include <iostream>
 #include <utility>
-#ifdef __GLIBC__
-#include <malloc.h>
-#endif
 
 #include "Commands.h"
 #include "Common.h"
 #include "kestrel/Error.h"
 
 int main(int argc, char** argv) {
-#ifdef __GLIBC__
-    // Blocks from 128 KiB up are mapped and unmapped on their own (glibc's default, made
-    // fixed): glibc otherwise raises the threshold to the size of the largest block freed (a
-    // whole-frame buffer at start-up), and every later block under it (the writer's chunks)
-    // stays in the heap after free: 10 MB more peak memory at 1080p (docs/benchmarks.md).
-    mallopt(M_MMAP_THRESHOLD, 128 * 1024);
-#endif
     CLI::App app{"kestrel: a node-graph render-pass framework for denoising image sequences",
                  "kestrel"};
     app.set_version_flag("--version", std::string("kestrel ") + KESTREL_VERSION);
@@ -28,8 +18,7 @@ int main(int argc, char** argv) {
         return "error: " + std::string(e.what()) + "\nRun with --help for more information.\n";
     });
     bool verbose = false;
-    app.add_flag("-v,--verbose", verbose, "More detail in logs and error messages")
-        ->configurable(false);
+    app.add_flag("-v,--verbose", verbose, "More detail in logs and error messages")->configurable(false);
 
     kestrel::cli::Action action;
     kestrel::cli::addRunCommand(app, action);
@@ -53,8 +42,7 @@ int main(int argc, char** argv) {
         std::string word = argv[i];
         if (!word.empty() && word[0] == '-') continue;
         const auto subs = std::as_const(app).get_subcommands([](const CLI::App*) { return true; });
-        if (std::none_of(subs.begin(), subs.end(),
-                         [&](const CLI::App* s) { return s->check_name(word); })) {
+        if (std::none_of(subs.begin(), subs.end(), [&](const CLI::App* s) { return s->check_name(word); })) {
             std::string names;
             for (const auto* sub : subs) names += (names.empty() ? "" : ", ") + sub->get_name();
             std::cerr << "error: unknown subcommand '" << word << "' (commands: " << names

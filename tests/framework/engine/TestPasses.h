@@ -97,23 +97,21 @@ public:
     }
 };
 
-/// out = in + 1, after filling every idle plane it is lent (PassIO::idlePlanes) with NaN: a
-/// plane wrongly counted idle corrupts a resource some pass still reads. Counts the planes.
-class ScribbleIdlePass : public Pass {
+/// AddOne, after filling every idle plane it is lent (PassIO::idlePlanes) with NaN: a plane
+/// wrongly counted idle corrupts a resource some pass still reads. Counts the planes.
+class ScribbleIdlePass : public AddOnePass {
 public:
     static PassDesc describe() {
         return PassDesc("ScribbleIdle", "in + 1, with NaN in every idle plane")
             .input("in", Format::Float, "input")
             .output("out", Format::Float, "in + 1");
     }
-    explicit ScribbleIdlePass(const ParamValues&) {}
+    using AddOnePass::AddOnePass;
     void execute(FrameContext& ctx, PassIO& io) override {
         lastIdleCount = io.idlePlanes().size();
         for (float* plane : io.idlePlanes())
             std::fill(plane, plane + ctx.extent.pixels(), std::numeric_limits<float>::quiet_NaN());
-        const ImageView& in = io.input("in");
-        const ImageView& o = io.output("out");
-        for (size_t i = 0; i < o.pixels(); ++i) o.channel(0)[i] = in.channel(0)[i] + 1.f;
+        AddOnePass::execute(ctx, io);
     }
     static inline size_t lastIdleCount = 0;
 };
