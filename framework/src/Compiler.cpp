@@ -6,6 +6,7 @@
 #include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <numeric>
 #include <optional>
 #include <set>
 #include <sstream>
@@ -54,6 +55,11 @@ public:
         if (options_.validateOnly) return std::move(g_);
         resolve();
         markLive();
+        if (options_.fuse) fuse();
+        g_->stepOf.resize(g_->order.size());
+        if (g_->steps == 0)  // not fused: one pass per step
+            for (size_t k = 0; k < g_->order.size(); ++k) g_->stepOf[k] = int(k);
+        g_->steps = g_->order.empty() ? 0 : g_->stepOf.back() + 1;
         planResources();
         return std::move(g_);
     }
@@ -491,11 +497,124 @@ private:
         }
     }
 
-    void planResources() {
+    /// The fusion key of executed node v: its type, fusionKey() and where its fuseOn inputs
+    /// come from; empty where it cannot fuse.
+    std::string fusionKeyOf(int v) {
+        const PassDesc& d = descOf(v);
+        if (d.fusedInputs.empty()) return {};
+        std::string key = node(v).pass->fusionKey();
+        if (key.empty()) return {};
+        key = d.type + "|" + key;
+        for (const auto& name : d.fusedInputs) {
+            const int p = portIndex(d, name, PortKind::Input);
+            const int e = node(v).inEdge[size_t(p)];
+            const auto src = sourceOf(v, p);
+            key += src ? "|" + portName(*src) + (edge(e).history ? "@prev" : "") : "|-";
+        }
+        return key;
+    }
+
+    /// Groups executed passes that may run fused (Pass::fusionKey) into steps. Passes of one key
+    /// are split into groups none of whose members depends on another (greedily, in execution
+    /// order); each group is contracted into one node of the dependency graph, which is sorted
+    /// again (smallest original index first among ready steps). Should the contraction make a
+    /// cycle (two groups each waiting for the other), nothing is fused.
+    void fuse() {
+        const size_t n = g_->order.size();
         std::vector<int> execIndex(g_->nodes.size(), -1);
-        for (size_t k = 0; k < g_->order.size(); ++k) execIndex[size_t(g_->order[k])] = int(k);
-        const int end = int(g_->order.size());
+        for (size_t k = 0; k < n; ++k) execIndex[size_t(g_->order[k])] = int(k);
+        // Same-frame dependencies (through forwarded passes) and their transitive closure;
+        // `order` is topological, so every predecessor's ancestors are known first.
+        std::vector<std::vector<int>> preds(n);
+        std::vector<std::vector<char>> ancestor(n, std::vector<char>(n, 0));
+        for (size_t k = 0; k < n; ++k) {
+            const int v = g_->order[k];
+            const auto& ports = descOf(v).ports;
+            for (size_t p = 0; p < ports.size(); ++p) {
+                const int e = node(v).inEdge[p];
+                if (ports[p].kind != PortKind::Input || e < 0 || edge(e).history) continue;
+                const auto src = sourceOf(v, int(p));
+                if (!src || execIndex[size_t(src->node)] < 0) continue;
+                const int from = execIndex[size_t(src->node)];
+                preds[k].push_back(from);
+                ancestor[k][size_t(from)] = 1;
+                for (size_t a = 0; a < n; ++a) ancestor[k][a] |= ancestor[size_t(from)][a];
+            }
+        }
+        std::map<std::string, std::vector<std::vector<int>>> byKey;  // key -> groups
+        for (size_t k = 0; k < n; ++k) {
+            const std::string key = fusionKeyOf(g_->order[k]);
+            if (key.empty()) continue;
+            auto& groups = byKey[key];
+            auto independent = [&](const std::vector<int>& group) {
+                return std::none_of(group.begin(), group.end(),
+                                    [&](int m) { return ancestor[k][size_t(m)] != 0; });
+            };
+            auto it = std::find_if(groups.begin(), groups.end(), independent);
+            if (it == groups.end())
+                groups.push_back({int(k)});
+            else
+                it->push_back(int(k));
+        }
+        std::vector<int> unit(n);  // execution index -> unit (its group's first member)
+        std::vector<std::vector<int>> members(n);
+        std::iota(unit.begin(), unit.end(), 0);
+        for (size_t k = 0; k < n; ++k) members[k] = {int(k)};
+        bool any = false;
+        for (const auto& [key, groups] : byKey)
+            for (const auto& group : groups) {
+                if (group.size() < 2) continue;
+                any = true;
+                for (size_t i = 1; i < group.size(); ++i) {
+                    unit[size_t(group[i])] = group[0];
+                    members[size_t(group[0])].push_back(group[i]);
+                    members[size_t(group[i])].clear();
+                }
+            }
+        if (!any) return;
+        std::vector<std::set<int>> succ(n);
+        std::vector<int> indeg(n, 0);
+        for (size_t k = 0; k < n; ++k)
+            for (int from : preds[k]) {
+                const int u = unit[size_t(from)], w = unit[k];
+                if (u != w && succ[size_t(u)].insert(w).second) ++indeg[size_t(w)];
+            }
+        std::set<int> ready;
+        for (size_t u = 0; u < n; ++u)
+            if (!members[u].empty() && indeg[u] == 0) ready.insert(int(u));
+        std::vector<int> order, stepOf;
+        int steps = 0;
+        while (!ready.empty()) {
+            const int u = *ready.begin();
+            ready.erase(ready.begin());
+            for (int k : members[size_t(u)]) {
+                order.push_back(g_->order[size_t(k)]);
+                stepOf.push_back(steps);
+            }
+            ++steps;
+            for (int w : succ[size_t(u)])
+                if (--indeg[size_t(w)] == 0) ready.insert(w);
+        }
+        if (order.size() != n) return;  // the contraction made a cycle: no fusion
+        for (const auto& m : members)
+            if (m.size() > 1) {
+                std::vector<std::string> names;
+                for (int k : m) names.push_back(node(g_->order[size_t(k)]).name);
+                g_->report.fused.push_back(std::move(names));
+            }
+        g_->order = std::move(order);
+        g_->stepOf = std::move(stepOf);
+        g_->steps = steps;
+    }
+
+    void planResources() {
+        // Indices are steps: passes fused into one step read and write at the same time.
+        std::vector<int> execIndex(g_->nodes.size(), -1);
+        for (size_t k = 0; k < g_->order.size(); ++k)
+            execIndex[size_t(g_->order[k])] = g_->stepOf[k];
+        const int end = g_->steps;
         std::map<std::pair<int, int>, int> resourceOf;  // (node, output port) -> resource
+        std::vector<int> producerNode;                  // resource -> node
         auto getResource = [&](PortRef src) {
             auto key = std::make_pair(src.node, src.port);
             auto it = resourceOf.find(key);
@@ -510,6 +629,7 @@ private:
             r.firstUse = r.lastUse = execIndex[size_t(src.node)];
             int id = int(g_->resources.size());
             g_->resources.push_back(r);
+            producerNode.push_back(src.node);
             resourceOf[key] = id;
             node(src.node).portResource[size_t(src.port)] = id;
             return id;
@@ -548,8 +668,12 @@ private:
         // over that input's planes when this pass is the input's last reader (the pass is
         // pointwise on the pair). History resources persist across frames and are never aliased.
         std::vector<bool> handedOver(g_->resources.size(), false);
+        std::vector<int> stepSize(size_t(end), 0);
+        for (int step : g_->stepOf) ++stepSize[size_t(step)];
         auto inPlaceSource = [&](int k, int r) -> int {
-            const int v = g_->order[size_t(k)];
+            // Not in a fused step: its passes run at once, so any may still read the input.
+            if (stepSize[size_t(k)] != 1) return -1;
+            const int v = producerNode[size_t(r)];
             const auto& ports = descOf(v).ports;
             const auto& pr = node(v).portResource;
             int out = -1;
@@ -648,7 +772,12 @@ int CompiledGraph::unaliasedPlaneCount() const {
 }
 const std::vector<int>& CompiledGraph::idlePlanes(size_t k) const {
     static const std::vector<int> none;
-    return k < impl_->idlePlanes.size() ? impl_->idlePlanes[k] : none;
+    if (k >= impl_->stepOf.size()) return none;
+    const size_t step = size_t(impl_->stepOf[k]);
+    return step < impl_->idlePlanes.size() ? impl_->idlePlanes[step] : none;
+}
+int CompiledGraph::stepOf(size_t k) const {
+    return k < impl_->stepOf.size() ? impl_->stepOf[k] : -1;
 }
 
 std::vector<std::string> CompiledGraph::executionOrder() const {

@@ -14,25 +14,30 @@ struct NodeState {
     std::unique_ptr<Pass> pass;
     ParamValues params;
     int jsonIndex = 0;
-    std::vector<int> inEdge;          ///< per port: edge index feeding it (inputs), else -1
-    std::vector<bool> outAbsent;      ///< per port (outputs): will not be produced
+    std::vector<int> inEdge;      ///< per port: edge index feeding it (inputs), else -1
+    std::vector<bool> outAbsent;  ///< per port (outputs): will not be produced
     std::vector<std::string> absentReason;
-    std::vector<std::string> rootCause;   ///< per absent output: "pass.port is absent (why)" at the origin
-    std::vector<int> forward;         ///< per port (outputs): input port it forwards, else -1
-    std::vector<int> portResource;    ///< per port: resource read (inputs) or written (outputs)
-    std::vector<bool> portHistory;    ///< per input port: reads the previous frame's buffer
-    bool absent = false;              ///< a required input is absent: nothing to compute
+    std::vector<std::string>
+        rootCause;             ///< per absent output: "pass.port is absent (why)" at the origin
+    std::vector<int> forward;  ///< per port (outputs): input port it forwards, else -1
+    std::vector<int> portResource;  ///< per port: resource read (inputs) or written (outputs)
+    std::vector<bool> portHistory;  ///< per input port: reads the previous frame's buffer
+    bool absent = false;            ///< a required input is absent: nothing to compute
     std::string absentWhy;
-    bool live = false;                ///< some needed output comes from this node
-    bool executed = false;            ///< live and not fully forwarded
+    bool live = false;      ///< some needed output comes from this node
+    bool executed = false;  ///< live and not fully forwarded
     std::vector<std::string> notes;
 };
 
 struct CompiledGraph::Impl {
     GraphDesc desc;
-    std::vector<NodeState> nodes;       ///< in JSON order
-    std::vector<int> topo;              ///< all nodes, same-frame topological order
-    std::vector<int> order;             ///< executed nodes in execution order
+    std::vector<NodeState> nodes;  ///< in JSON order
+    std::vector<int> topo;         ///< all nodes, same-frame topological order
+    std::vector<int> order;        ///< executed nodes in execution order
+    /// Per execution index: its step. Fused passes (Pass::executeFused) are adjacent in
+    /// `order` and share a step; the memory plan's indices are steps.
+    std::vector<int> stepOf;
+    int steps = 0;
     std::vector<ResourceInfo> resources;
     int transientPlanes = 0;
     int unaliasedPlanes = 0;

@@ -231,17 +231,35 @@ void Executor::runFrame(int64_t frameNumber, bool writeOutputs) {
     ctx.historyValid = m.historyValid;
     m.bind();
 
-    m.times.resize(m.g.order.size());
+    const size_t count = m.g.order.size();
+    m.times.resize(count);
     auto frameStart = Clock::now();
-    for (size_t k = 0; k < m.g.order.size(); ++k) {
-        auto& n = m.g.nodes[size_t(m.g.order[k])];
+    std::vector<Pass*> fusedPasses;
+    std::vector<PassIO*> fusedIO;
+    for (size_t k0 = 0, k1 = 0; k0 < count; k0 = k1) {
+        k1 = k0 + 1;  // [k0, k1): one step (fused passes share it)
+        while (k1 < count && m.g.stepOf[k1] == m.g.stepOf[k0]) ++k1;
+        auto& n = m.g.nodes[size_t(m.g.order[k0])];
         auto t0 = Clock::now();
         try {
-            n.pass->execute(ctx, m.io[k]);
+            if (k1 == k0 + 1) {
+                n.pass->execute(ctx, m.io[k0]);
+            } else {
+                fusedPasses.clear();
+                fusedIO.clear();
+                for (size_t k = k0; k < k1; ++k) {
+                    fusedPasses.push_back(m.g.nodes[size_t(m.g.order[k])].pass.get());
+                    fusedIO.push_back(&m.io[k]);
+                }
+                n.pass->executeFused(ctx, fusedPasses, fusedIO);
+            }
         } catch (const std::exception& e) {
             fail(n, e);
         }
-        m.times[k] = {n.name, std::chrono::duration<double, std::milli>(Clock::now() - t0).count()};
+        // A fused step's time is shared equally by its passes.
+        const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+        for (size_t k = k0; k < k1; ++k)
+            m.times[k] = {m.g.nodes[size_t(m.g.order[k])].name, ms / double(k1 - k0)};
     }
     m.frameMs = std::chrono::duration<double, std::milli>(Clock::now() - frameStart).count();
     // Swap, not copy: this frame's buffers become next frame's history.

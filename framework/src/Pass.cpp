@@ -48,6 +48,22 @@ PassDesc& PassDesc::inPlaceOf(std::string input) {
     return *this;
 }
 
+PassDesc& PassDesc::fuseOn(std::vector<std::string> inputs) {
+    for (const auto& name : inputs) {
+        const PortDesc* in = findPort(name);
+        if (!in || in->kind != PortKind::Input)
+            throw Error("pass type '" + type + "': fuseOn('" + name +
+                        "') must name an input declared before it");
+    }
+    fusedInputs = std::move(inputs);
+    return *this;
+}
+
+void Pass::executeFused(FrameContext& ctx, std::span<Pass* const> passes,
+                        std::span<PassIO* const> ios) {
+    for (size_t i = 0; i < passes.size(); ++i) passes[i]->execute(ctx, *ios[i]);
+}
+
 PassDesc& PassDesc::paramFloat(std::string name, double def, double min, double max,
                                std::string desc) {
     params.push_back({std::move(name), ParamType::Float, def, min, max, {}, std::move(desc)});

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <numeric>
 #include <vector>
@@ -59,8 +60,33 @@ constexpr float kLn2 = 0.693147180559945f;
 constexpr float kMaxVariance = 1e32f;  // sanitizePositive's limit for the variance input
 
 // The planes a band computes first: reading its inputs in place, it needs scratch only for them.
-enum Plane { L, GX, GY, INVL, R, G, B, Z, NX, NY, NZ, VAR, ID, kPlaneCount };
-constexpr int kComputedPlanes = INVL + 1;
+// L, INVL, R, G, B and VAR are per signal (a fused pair filters two, executeFused); the
+// geometry is shared.
+enum Plane {
+    GX,
+    GY,
+    L,
+    INVL,
+    L2,
+    INVL2,
+    R,
+    G,
+    B,
+    Z,
+    NX,
+    NY,
+    NZ,
+    VAR,
+    ID,
+    R2,
+    G2,
+    B2,
+    VAR2,
+    kPlaneCount
+};
+constexpr int kComputedPlanes[3] = {0, INVL + 1, INVL2 + 1};  // by signal count
+constexpr int kLum[2] = {L, L2}, kInvL[2] = {INVL, INVL2}, kVarPlane[2] = {VAR, VAR2};
+constexpr int kRgb[2][3] = {{R, G, B}, {R2, G2, B2}};
 
 template <class Fn>
 void copySanitized(const float* __restrict src, float* __restrict dst, int n, Fn fn) {
@@ -140,11 +166,12 @@ constexpr bool kMaskedEdges = simd::kMaskedLoadsCannotFault;
 /// centre pixels' inputs are clean: sanitising them (pass 1 below) would change nothing (the
 /// tests are exactly the identity conditions of px::sanitize, sanitizeNormal, sanitizeDepth
 /// and sanitizePositive).
-template <int K, int kSquarings, bool kEdge, bool kId, bool kNormal, bool kVar>
+template <int K, int S, int kSquarings, bool kEdge, bool kId, bool kNormal, bool kVar>
 bool filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATrousPass::Settings& s,
-                  float* const* P, int base, const int32_t* ids, float* const oc[3], float* ov,
-                  bool checkVar) {
+                  float* const* P, int base, const int32_t* ids, float* const (*oc)[3],
+                  float* const* ov, bool checkVar) {
     static_assert(!kEdge || K == 1);
+    static_assert(S == 1 || S == 2);
     const DF d;
     const DI di;
     const size_t n = hn::Lanes(d);
@@ -168,9 +195,11 @@ bool filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATro
     const VF kc = hn::Set(d, kH[2] * kH[2]);
     // Pre-scaled so a tap's exponent is one multiply-add: e = |dz| / denomZ' + |dl| * nInvL,
     // with denomZ' = -ln2 (sigma_z |grad z . d| + eps) and nInvL = -log2(e) / (sigma_l ...).
-    VF cz[K], cl[K], cgx[K], cgy[K], nInvL[K], cnx[K], cny[K], cnz[K], epsZ[K], qz[K];
+    // The geometry's terms are shared by the signals; luminance and accumulators are per signal.
+    VF cz[K], cgx[K], cgy[K], cnx[K], cny[K], cnz[K], epsZ[K], qz[K];
+    VF cl[S][K], nInvL[S][K];
     VI cid[K];
-    VF aw[K], ar[K], ag[K], ab[K], av[K];
+    VF aw[S][K], ar[S][K], ag[S][K], ab[S][K], av[S][K];
     MF clean = hn::FirstN(d, n);
     // Clean: the sanitiser (the vector forms of pass 1's) returns the value itself; NaN never
     // compares equal, and +-0 are returned as they are.
@@ -179,10 +208,8 @@ bool filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATro
     for (int k = 0; k < K; ++k) {
         const ptrdiff_t ok = o + ptrdiff_t(k * n);
         cz[k] = load(P[Z], ok, centreIn);
-        cl[k] = load(P[L], ok, centreIn);
         cgx[k] = load(P[GX], ok, centreIn);
         cgy[k] = load(P[GY], ok, centreIn);
-        nInvL[k] = hn::Mul(load(P[INVL], ok, centreIn), hn::Set(d, -px::kLog2e));
         cnx[k] = load(P[NX], ok, centreIn);
         cny[k] = load(P[NY], ok, centreIn);
         cnz[k] = load(P[NZ], ok, centreIn);
@@ -194,25 +221,31 @@ bool filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATro
             hn::MulAdd(hn::Set(d, kEpsZRel + s.depthPrecision), cz[k], hn::Set(d, kEpsZAbs)),
             hn::Set(d, -kLn2));
         qz[k] = hn::Mul(hn::Set(d, -kLn2 * s.sigmaZ * s.depthPrecision), cz[k]);
-        aw[k] = kc;
-        const VF r = load(P[R], ok, centreIn), g = load(P[G], ok, centreIn),
-                 b = load(P[B], ok, centreIn);
-        ar[k] = hn::Mul(kc, r);
-        ag[k] = hn::Mul(kc, g);
-        ab[k] = hn::Mul(kc, b);
-        // The variance is checked wherever it is bound: the luminance weight's prefilter reads
-        // it even when the propagated variance is not wanted (checkVar without kVar).
-        const bool withVar = kVar || checkVar;
-        const VF v = withVar ? load(P[VAR], ok, centreIn) : hn::Zero(d);
-        av[k] = kVar ? hn::Mul(hn::Mul(kc, kc), v) : hn::Zero(d);
-        MF c = hn::And(hn::And(same(r, simd::sanitize(r)), same(g, simd::sanitize(g))),
-                       same(b, simd::sanitize(b)));
-        c = hn::And(c, same(cz[k], simd::sanitizeDepth(cz[k])));
+        MF c = same(cz[k], simd::sanitizeDepth(cz[k]));
         if constexpr (kNormal)
             c = hn::And(c, hn::And(hn::And(same(cnx[k], simd::sanitizeNormal(cnx[k])),
                                            same(cny[k], simd::sanitizeNormal(cny[k]))),
                                    same(cnz[k], simd::sanitizeNormal(cnz[k]))));
-        if (withVar) c = hn::And(c, same(v, simd::sanitizePositive(v, kMaxVariance)));
+#pragma GCC unroll 2
+        for (int g = 0; g < S; ++g) {
+            cl[g][k] = load(P[kLum[g]], ok, centreIn);
+            nInvL[g][k] = hn::Mul(load(P[kInvL[g]], ok, centreIn), hn::Set(d, -px::kLog2e));
+            aw[g][k] = kc;
+            const VF r = load(P[kRgb[g][0]], ok, centreIn), gr = load(P[kRgb[g][1]], ok, centreIn),
+                     b = load(P[kRgb[g][2]], ok, centreIn);
+            ar[g][k] = hn::Mul(kc, r);
+            ag[g][k] = hn::Mul(kc, gr);
+            ab[g][k] = hn::Mul(kc, b);
+            // The variance is checked wherever it is bound: the luminance weight's prefilter
+            // reads it even when the propagated variance is not wanted (checkVar without kVar).
+            const bool withVar = kVar || checkVar;
+            const VF v = withVar ? load(P[kVarPlane[g]], ok, centreIn) : hn::Zero(d);
+            av[g][k] = kVar ? hn::Mul(hn::Mul(kc, kc), v) : hn::Zero(d);
+            c = hn::And(c,
+                        hn::And(hn::And(same(r, simd::sanitize(r)), same(gr, simd::sanitize(gr))),
+                                same(b, simd::sanitize(b))));
+            if (withVar) c = hn::And(c, same(v, simd::sanitizePositive(v, kMaxVariance)));
+        }
         clean = hn::And(clean, c);
     }
     clean = hn::Or(clean, hn::Not(centreIn));  // lanes outside the row do not count
@@ -227,7 +260,7 @@ bool filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATro
     const VI firstColumn = hn::Set(di, -1), pastLast = hn::Set(di, width);
     auto taps = [&](auto count, int k, const ptrdiff_t* q, const int* dxs, VF rz, VF kh) HWY_ATTR {
         constexpr int T = decltype(count)::value;
-        VF e[T], w[T];
+        VF e[S][T], w[T];
         MF in[T];  // kEdge: the lanes whose tap is inside the row
 #pragma GCC unroll 2
         for (int t = 0; t < T; ++t) {
@@ -242,8 +275,11 @@ bool filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATro
         for (int t = 0; t < T; ++t) {
             // SVGF eq. 3 (depth) and eq. 5 (luminance, 1 / denominator precomputed).
             const VF adz = hn::Abs(hn::Sub(cz[k], load(P[Z], q[t], in[t])));
-            const VF adl = hn::Abs(hn::Sub(cl[k], load(P[L], q[t], in[t])));
-            e[t] = hn::MulAdd(adz, rz, hn::Mul(adl, nInvL[k]));
+#pragma GCC unroll 2
+            for (int g = 0; g < S; ++g) {
+                const VF adl = hn::Abs(hn::Sub(cl[g][k], load(P[kLum[g]], q[t], in[t])));
+                e[g][t] = hn::MulAdd(adz, rz, hn::Mul(adl, nInvL[g][k]));
+            }
             w[t] = kh;
         }
         if constexpr (kNormal) {  // SVGF eq. 4: max(0, n_p . n_q)^sigma_n
@@ -271,33 +307,37 @@ bool filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATro
                         w[t] = hn::Mul(w[t],
                                        simd::powInt(hn::Min(hn::Max(dot[t], zero), one), intPower));
                     } else {
-                        e[t] = hn::MulAdd(
-                            sigmaN, simd::fastLog2(hn::Min(hn::Max(dot[t], minDot), one)), e[t]);
-                        e[t] = hn::Add(e[t], hn::IfThenZeroElse(hn::Gt(dot[t], zero), zeroWeight));
+                        const VF logDot = simd::fastLog2(hn::Min(hn::Max(dot[t], minDot), one));
+                        const VF facing = hn::IfThenZeroElse(hn::Gt(dot[t], zero), zeroWeight);
+#pragma GCC unroll 2
+                        for (int g = 0; g < S; ++g)
+                            e[g][t] = hn::Add(hn::MulAdd(sigmaN, logDot, e[g][t]), facing);
                     }
                 }
             }
         }
-#pragma GCC unroll 2
-        for (int t = 0; t < T; ++t) w[t] = hn::Mul(w[t], simd::fastExp2(e[t]));
-        if constexpr (kId || kEdge) {
-#pragma GCC unroll 2
-            for (int t = 0; t < T; ++t) {
-                // A tap on another object, or outside the row, has weight exactly 0.
-                MF keep = in[t];
-                if constexpr (kId)
-                    keep = hn::And(keep, hn::RebindMask(d, hn::Eq(cid[k], loadId(q[t], in[t]))));
-                w[t] = hn::IfThenElseZero(keep, w[t]);
-            }
-        }
+        MF keep[T];  // a tap on another object, or outside the row, has weight exactly 0
 #pragma GCC unroll 2
         for (int t = 0; t < T; ++t) {
-            aw[k] = hn::Add(aw[k], w[t]);
-            ar[k] = hn::MulAdd(w[t], load(P[R], q[t], in[t]), ar[k]);
-            ag[k] = hn::MulAdd(w[t], load(P[G], q[t], in[t]), ag[k]);
-            ab[k] = hn::MulAdd(w[t], load(P[B], q[t], in[t]), ab[k]);
-            if constexpr (kVar)
-                av[k] = hn::MulAdd(hn::Mul(w[t], w[t]), load(P[VAR], q[t], in[t]), av[k]);
+            keep[t] = in[t];
+            if constexpr (kId)
+                keep[t] = hn::And(keep[t], hn::RebindMask(d, hn::Eq(cid[k], loadId(q[t], in[t]))));
+        }
+#pragma GCC unroll 2
+        for (int g = 0; g < S; ++g) {
+            const int* rgb = kRgb[g];
+#pragma GCC unroll 2
+            for (int t = 0; t < T; ++t) {
+                VF wg = hn::Mul(w[t], simd::fastExp2(e[g][t]));
+                if constexpr (kId || kEdge) wg = hn::IfThenElseZero(keep[t], wg);
+                aw[g][k] = hn::Add(aw[g][k], wg);
+                ar[g][k] = hn::MulAdd(wg, load(P[rgb[0]], q[t], in[t]), ar[g][k]);
+                ag[g][k] = hn::MulAdd(wg, load(P[rgb[1]], q[t], in[t]), ag[g][k]);
+                ab[g][k] = hn::MulAdd(wg, load(P[rgb[2]], q[t], in[t]), ab[g][k]);
+                if constexpr (kVar)
+                    av[g][k] =
+                        hn::MulAdd(hn::Mul(wg, wg), load(P[kVarPlane[g]], q[t], in[t]), av[g][k]);
+            }
         }
     };
     // The 24 taps as 12 point-symmetric pairs q = p + d and q' = p - d: both have the same
@@ -342,22 +382,25 @@ bool filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATro
             }
         }
     }
+#pragma GCC unroll 2
+    for (int g = 0; g < S; ++g) {
 #pragma GCC unroll 4
-    for (int k = 0; k < K; ++k) {
-        const size_t xk = size_t(x0) + size_t(k) * n;
-        const VF inv = hn::Div(one, aw[k]);  // aw >= kc > 0
-        // SVGF eq. 2: Var = sum(w^2 Var_q) / (sum w)^2
-        const VF out[4] = {hn::Mul(ar[k], inv), hn::Mul(ag[k], inv), hn::Mul(ab[k], inv),
-                           hn::Mul(av[k], hn::Mul(inv, inv))};
-        float* const dst[4] = {oc[0], oc[1], oc[2], ov};
-        const int planes = ov ? 4 : 3;
-        if (!kEdge || x0 + int(n) <= width) {
-            for (int c = 0; c < planes; ++c) hn::StoreU(out[c], d, dst[c] + xk);
-        } else {  // the row's last, partial vector: only the lanes inside the row
-            HWY_ALIGN float lanes[HWY_MAX_BYTES / sizeof(float)];
-            for (int c = 0; c < planes; ++c) {
-                hn::Store(out[c], d, lanes);
-                std::copy_n(lanes, width - x0, dst[c] + xk);
+        for (int k = 0; k < K; ++k) {
+            const size_t xk = size_t(x0) + size_t(k) * n;
+            const VF inv = hn::Div(one, aw[g][k]);  // aw >= kc > 0
+            // SVGF eq. 2: Var = sum(w^2 Var_q) / (sum w)^2
+            const VF out[4] = {hn::Mul(ar[g][k], inv), hn::Mul(ag[g][k], inv),
+                               hn::Mul(ab[g][k], inv), hn::Mul(av[g][k], hn::Mul(inv, inv))};
+            float* const dst[4] = {oc[g][0], oc[g][1], oc[g][2], ov[g]};
+            const int planes = ov[g] ? 4 : 3;
+            if (!kEdge || x0 + int(n) <= width) {
+                for (int c = 0; c < planes; ++c) hn::StoreU(out[c], d, dst[c] + xk);
+            } else {  // the row's last, partial vector: only the lanes inside the row
+                HWY_ALIGN float lanes[HWY_MAX_BYTES / sizeof(float)];
+                for (int c = 0; c < planes; ++c) {
+                    hn::Store(out[c], d, lanes);
+                    std::copy_n(lanes, width - x0, dst[c] + xk);
+                }
             }
         }
     }
@@ -367,22 +410,28 @@ bool filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATro
 /// Rows [y0, y1): whole vectors where every tap is inside the row, edge blocks (masked taps,
 /// partial last vector) near the borders. Which pixels take which path depends only on the
 /// width and step, never on the banding or thread count.
-template <int kSquarings, bool kId, bool kNormal, bool kVar>
+template <int S, int kSquarings, bool kId, bool kNormal, bool kVar>
 void filterRange(int y0, int y1, int width, size_t pitch, int height, const ATrousPass::Settings& s,
-                 float* const* P, int base, const int32_t* ids, const ImageView& outColor,
-                 const ImageView* outVar, uint8_t* rowClean, bool checkVar) {
+                 float* const* P, int base, const int32_t* ids, const Bindings* const* b,
+                 uint8_t* rowClean, bool checkVar) {
     // Two vectors per block: on AVX-512 (1080p, 1 thread, min of 7) 52.8-55.2 ms at step 1
-    // against 54.5-56.9 ms for one vector, equal at step 16.
-    constexpr int K = 2;
+    // against 54.5-56.9 ms for one vector, equal at step 16. A pair of signals keeps twice the
+    // accumulators in registers: one vector (two spill: 1080p step 1, 2 threads, 35.6 against
+    // 27.0 ms per pair).
+    constexpr int K = S == 1 ? 2 : 1;
     const int n = int(hn::Lanes(DF()));
     const int reach = 2 * s.step;
     for (int y = y0; y < y1; ++y) {
-        float* const oc[3] = {outColor.row(0, y), outColor.row(1, y), outColor.row(2, y)};
-        float* ov = outVar ? outVar->row(0, y) : nullptr;
+        float* oc[S][3];
+        float* ov[S];
+        for (int g = 0; g < S; ++g) {
+            for (int c = 0; c < 3; ++c) oc[g][c] = b[g]->outColor.row(c, y);
+            ov[g] = b[g]->outVar ? b[g]->outVar->row(0, y) : nullptr;
+        }
         bool clean = true;
         auto block = [&](auto k, auto edge, int x) {
             clean &=
-                filterBlocks<decltype(k)::value, kSquarings, decltype(edge)::value, kId, kNormal,
+                filterBlocks<decltype(k)::value, S, kSquarings, decltype(edge)::value, kId, kNormal,
                              kVar>(x, y, width, pitch, height, s, P, base, ids, oc, ov, checkVar);
         };
         using One = std::integral_constant<int, 1>;
@@ -398,15 +447,16 @@ void filterRange(int y0, int y1, int width, size_t pitch, int height, const ATro
     }
 }
 
-/// The fast path (everything but `exact`) for this target.
-void filterFast(FrameContext& ctx, PassIO& io, const ATrousPass::Settings& s_) {
-    const Bindings b(io);
+/// The fast path (everything but `exact`) for this target: one signal, or a fused pair
+/// (`signals` = 2) sharing the first's geometry and geometric settings; each signal's own
+/// settings give its luminance weight (sigmaL, sigmaColor).
+void filterFast(FrameContext& ctx, const Bindings* const* b, int signals,
+                const ATrousPass::Settings* settings) {
     const int width = ctx.extent.width, height = ctx.extent.height;
-    const ImageView &color = b.color, &depth = b.depth, &normal = b.normal;
-    const ImageView* var = b.var;
-    const int32_t* ids = b.ids;
-    const ImageView& outColor = b.outColor;
-    const ImageView* outVar = b.outVar;
+    const ImageView &depth = b[0]->depth, &normal = b[0]->normal;
+    const int32_t* ids = b[0]->ids;
+    const bool withVar = b[0]->outVar != nullptr;
+    const bool checkVar = b[0]->var != nullptr;
     // The image is filtered in bands of rows, each with private scratch planes covering the
     // band and the rows its taps reach (2 step above and below): scratch then scales with the
     // band, not the frame (at 1080p and step 16, 13 planes of 128 rows, ~13 MB per thread, and
@@ -419,16 +469,15 @@ void filterFast(FrameContext& ctx, PassIO& io, const ATrousPass::Settings& s_) {
     // Bands of 64 rows (twice the reach from step 16 on): the halo is then a quarter of the
     // band at step 4 (it was half with 32-row bands: 57-62 against 66-70 ms, 1 thread), and the
     // largest scratch, step 16's 64 + 2 x 32 rows, stays the same.
-    const int reach = 2 * s_.step;
+    const ATrousPass::Settings s = settings[0];
+    const int reach = 2 * s.step;
     const int band = std::min(height, std::max(64, 2 * reach));
     const int bands = (height + band - 1) / band;
     const int maxRows = std::min(height, band + 2 * reach);
     const size_t margin = size_t(reach) + hn::Lanes(DF());
     const size_t pitch = size_t(width) + margin;
     const size_t bandPixels = margin + size_t(maxRows) * pitch;
-    const float sigmaL = s_.sigmaL, sigmaColor = s_.sigmaColor;
-    const bool useNormal = s_.sigmaN > 0.f;
-    const ATrousPass::Settings s = s_;
+    const bool useNormal = s.sigmaN > 0.f;
     // Inputs are nearly always clean (the previous iteration's output, the loader's geometry),
     // so every band first reads them in place, without copying nine planes into scratch
     // (1080p, 1 thread, min of 5, three alternating rounds: step 1 51-52 -> 44-45 ms, step 16
@@ -438,15 +487,22 @@ void filterFast(FrameContext& ctx, PassIO& io, const ATrousPass::Settings& s_) {
     // kernel, so the output does not depend on which was taken.
     std::vector<uint8_t> rowClean(size_t(height), 0);
     const bool tryInPlace = kMaskedEdges;
-    const bool checkVar = var != nullptr;
     auto filterBands = [&](const std::vector<int>& list, bool inPlace) {
         ctx.parallel->forRange(
             0, int(list.size()),
             [&](int j0, int j1) {
-                const int planes = inPlace ? kComputedPlanes : kPlaneCount;
+                // Scratch for the planes this band computes or copies (a single signal's
+                // exactly those it uses).
+                const int limit = inPlace ? kComputedPlanes[signals] : kPlaneCount;
+                auto used = [&](int k) {
+                    return signals == 2 || (k != L2 && k != INVL2 && k < R2);
+                };
+                int planes = 0;
+                for (int k = 0; k < limit; ++k) planes += used(k);
                 auto lease = ScratchPool::acquire(size_t(planes), bandPixels);
                 float* scratch[kPlaneCount] = {};
-                for (int k = 0; k < planes; ++k) scratch[k] = lease[size_t(k)] + margin;
+                for (int k = 0, next = 0; k < limit; ++k)
+                    if (used(k)) scratch[k] = lease[size_t(next++)] + margin;
                 std::vector<float> vcol(static_cast<size_t>(width));
                 for (int j = j0; j < j1; ++j) {
                     const int i = list[size_t(j)];
@@ -464,21 +520,24 @@ void filterFast(FrameContext& ctx, PassIO& io, const ATrousPass::Settings& s_) {
                     const int32_t* bandIds =
                         ids ? reinterpret_cast<const int32_t*>(P[ID]) : nullptr;
                     if (inPlace) {
-                        for (int c = 0; c < 3; ++c) {
-                            P[R + c] = color.row(c, base);
-                            P[NX + c] = normal.row(c, base);
-                        }
+                        for (int c = 0; c < 3; ++c) P[NX + c] = normal.row(c, base);
                         P[Z] = depth.row(0, base);
-                        if (var) P[VAR] = var->row(0, base);
                         if (ids) bandIds = ids + size_t(base) * size_t(width);
-                        for (int y = base; y < p1; ++y) {
-                            const size_t o = off(y);
-                            lumaRow(P[R] + o, P[G] + o, P[B] + o, P[L] + o, width);
+                        for (int g = 0; g < signals; ++g) {
+                            const int* rgb = kRgb[g];
+                            for (int c = 0; c < 3; ++c) P[rgb[c]] = b[g]->color.row(c, base);
+                            if (checkVar) P[kVarPlane[g]] = b[g]->var->row(0, base);
+                            for (int y = base; y < p1; ++y) {
+                                const size_t o = off(y);
+                                lumaRow(P[rgb[0]] + o, P[rgb[1]] + o, P[rgb[2]] + o, P[kLum[g]] + o,
+                                        width);
+                            }
                         }
                     }
                     // Margins: zero (finite: a tap outside the row has weight 0, which multiplies
                     // them).
                     for (int k = 0; k < kPlaneCount && !inPlace && !kMaskedEdges; ++k) {
+                        if (!P[k]) continue;  // a plane this signal count does not use
                         std::fill_n(P[k] - margin, margin, 0.f);
                         for (int y = base; y < p1; ++y)
                             std::fill_n(P[k] + off(y) + width, margin, 0.f);
@@ -487,21 +546,25 @@ void filterFast(FrameContext& ctx, PassIO& io, const ATrousPass::Settings& s_) {
                     // below may). One plane per loop: two streams each, so every loop vectorises.
                     for (int y = base; y < p1 && !inPlace; ++y) {
                         const size_t o = off(y);
-                        for (int c = 0; c < 3; ++c) {
-                            copySanitized(color.row(c, y), P[R + c] + o, width,
-                                          [](float v) { return px::sanitize(v); });
+                        for (int c = 0; c < 3; ++c)
                             copySanitized(normal.row(c, y), P[NX + c] + o, width,
                                           px::sanitizeNormal);
-                        }
                         copySanitized(depth.row(0, y), P[Z] + o, width, px::sanitizeDepth);
-                        if (var)
-                            copySanitized(var->row(0, y), P[VAR] + o, width, [](float v) {
-                                return px::sanitizePositive(v, kMaxVariance);
-                            });
                         if (ids)
                             std::copy_n(ids + size_t(y) * size_t(width), width,
                                         reinterpret_cast<int32_t*>(P[ID]) + o);
-                        lumaRow(P[R] + o, P[G] + o, P[B] + o, P[L] + o, width);
+                        for (int g = 0; g < signals; ++g) {
+                            const int* rgb = kRgb[g];
+                            for (int c = 0; c < 3; ++c)
+                                copySanitized(b[g]->color.row(c, y), P[rgb[c]] + o, width,
+                                              [](float v) { return px::sanitize(v); });
+                            if (checkVar)
+                                copySanitized(
+                                    b[g]->var->row(0, y), P[kVarPlane[g]] + o, width,
+                                    [](float v) { return px::sanitizePositive(v, kMaxVariance); });
+                            lumaRow(P[rgb[0]] + o, P[rgb[1]] + o, P[rgb[2]] + o, P[kLum[g]] + o,
+                                    width);
+                        }
                     }
                     // Pass 2: depth gradient (edge-preserving one-sided differences) and the
                     // luminance weight's 1 / (sigma_l sqrt(g3x3(Var)) + eps) with a 3x3 Gaussian
@@ -514,19 +577,24 @@ void filterFast(FrameContext& ctx, PassIO& io, const ATrousPass::Settings& s_) {
                         const float* z = P[Z] + o;
                         gradientRow(z, up ? z - bandPitch : z, down ? z + bandPitch : z, P[GX] + o,
                                     P[GY] + o, width, up, down);
-                        if (!var) {
-                            std::fill(P[INVL] + o, P[INVL] + o + width, 1.f / (sigmaColor + kEpsL));
-                            continue;
+                        for (int g = 0; g < signals; ++g) {
+                            float* invL = P[kInvL[g]] + o;
+                            if (!checkVar) {
+                                std::fill(invL, invL + width,
+                                          1.f / (settings[g].sigmaColor + kEpsL));
+                                continue;
+                            }
+                            // Separable 3x3 Gaussian (1/4, 1/2, 1/4)^2: vertical, then
+                            // horizontal; weights of taps outside the image are dropped and the
+                            // rest renormalised.
+                            const float* v = P[kVarPlane[g]] + o;
+                            const float* va = up ? v - bandPitch : v;
+                            const float* vb = down ? v + bandPitch : v;
+                            const float wa = up ? 0.25f : 0.f, wb = down ? 0.25f : 0.f;
+                            const float vNorm = 1.f / (0.5f + wa + wb);
+                            verticalRow(va, v, vb, wa, wb, vNorm, vcol.data(), width);
+                            horizontalInvL(vcol.data(), invL, width, settings[g].sigmaL);
                         }
-                        // Separable 3x3 Gaussian (1/4, 1/2, 1/4)^2: vertical, then horizontal;
-                        // weights of taps outside the image are dropped and the rest renormalised.
-                        const float* v = P[VAR] + o;
-                        const float* va = up ? v - bandPitch : v;
-                        const float* vb = down ? v + bandPitch : v;
-                        const float wa = up ? 0.25f : 0.f, wb = down ? 0.25f : 0.f;
-                        const float vNorm = 1.f / (0.5f + wa + wb);
-                        verticalRow(va, v, vb, wa, wb, vNorm, vcol.data(), width);
-                        horizontalInvL(vcol.data(), P[INVL] + o, width, sigmaL);
                     }
                     // Pass 3: the filter itself.
                     auto run = [&](auto id, auto nrm, auto v) {
@@ -534,18 +602,22 @@ void filterFast(FrameContext& ctx, PassIO& io, const ATrousPass::Settings& s_) {
                                        kVar = decltype(v)::value;
                         // The default sigma_n = 128 = 2^7 gets a kernel with its seven squarings
                         // unrolled.
-                        if (s.sigmaN == 128.f)
-                            filterRange<7, kId, kNormal, kVar>(y0, y1, width, bandPitch, height, s,
-                                                               P, base, bandIds, outColor, outVar,
-                                                               rowClean.data(), checkVar);
+                        auto range = [&](auto pair, auto squarings) {
+                            filterRange<decltype(pair)::value, decltype(squarings)::value, kId,
+                                        kNormal, kVar>(y0, y1, width, bandPitch, height, s, P, base,
+                                                       bandIds, b, rowClean.data(), checkVar);
+                        };
+                        using One = std::integral_constant<int, 1>;
+                        using Two = std::integral_constant<int, 2>;
+                        using Seven = std::integral_constant<int, 7>;
+                        using Zero = std::integral_constant<int, 0>;
+                        if (signals == 2)
+                            s.sigmaN == 128.f ? range(Two{}, Seven{}) : range(Two{}, Zero{});
                         else
-                            filterRange<0, kId, kNormal, kVar>(y0, y1, width, bandPitch, height, s,
-                                                               P, base, bandIds, outColor, outVar,
-                                                               rowClean.data(), checkVar);
+                            s.sigmaN == 128.f ? range(One{}, Seven{}) : range(One{}, Zero{});
                     };
                     using T = std::true_type;
                     using F = std::false_type;
-                    const bool withVar = outVar != nullptr;
                     if (ids) {
                         if (useNormal)
                             withVar ? run(T{}, T{}, T{}) : run(T{}, T{}, F{});
@@ -602,6 +674,7 @@ PassDesc ATrousPass::describe() {
         .optionalInput("objectId", Format::Int32, "object id: taps on another object get weight 0")
         .output("color", Format::Float3, "filtered illumination")
         .output("variance", Format::Float, "propagated variance (absent without variance input)")
+        .fuseOn({"depth", "normal", "objectId"})
         .paramInt("step", 1, 1, 1024, "tap spacing in pixels (2^iteration)")
         .paramFloat("sigmaZ", 1.0, 0.0, 1e6, "depth weight: tolerance in units of the depth slope")
         .paramFloat("sigmaN", 128.0, 0.0, 1e4, "normal weight exponent on max(0, n_p . n_q)")
@@ -636,15 +709,59 @@ void ATrousPass::resolve(ResolveContext& rc) {
         rc.forward("color", "color");
         if (rc.isBound("variance")) rc.forward("variance", "variance");
     }
-    if (!rc.isBound("variance")) {
+    varianceBound_ = rc.isBound("variance");
+    if (!varianceBound_) {
         rc.setAbsent("variance", "no variance input");
         rc.note("no variance input: luminance weight uses the fixed sigmaColor");
     }
 }
 
+std::string ATrousPass::fusionKey() const {
+    if (exact_ || skipped_) return {};
+    // Everything the shared geometric work depends on; sigmaL and sigmaColor are per signal.
+    // A pair filters both signals with or both without a variance.
+    char key[128];
+    std::snprintf(key, sizeof key, "step=%d sigmaZ=%a sigmaN=%a depthPrecision=%a variance=%d",
+                  s_.step, double(s_.sigmaZ), double(s_.sigmaN), double(s_.depthPrecision),
+                  int(varianceBound_));
+    return key;
+}
+
+namespace {
+/// Whether two passes' bindings can be filtered as one pair: the same geometry images and the
+/// same variance ports (the kernel's variants are per pair).
+bool pairable(const Bindings& a, const Bindings& b) {
+    return a.depth.planes == b.depth.planes && a.normal.planes == b.normal.planes &&
+           a.ids == b.ids && (a.var == nullptr) == (b.var == nullptr) &&
+           (a.outVar == nullptr) == (b.outVar == nullptr);
+}
+}  // namespace
+
+void ATrousPass::executeFused(FrameContext& ctx, std::span<Pass* const> passes,
+                              std::span<PassIO* const> ios) {
+    // Pairs share each tap's depth, normal and object-id work (NRD filters diffuse and
+    // specular together the same way); an odd one out runs alone.
+    size_t i = 0;
+    for (; i + 1 < ios.size(); i += 2) {
+        const Bindings b0(*ios[i]), b1(*ios[i + 1]);
+        if (!pairable(b0, b1)) {
+            passes[i]->execute(ctx, *ios[i]);
+            passes[i + 1]->execute(ctx, *ios[i + 1]);
+            continue;
+        }
+        const Bindings* b[2] = {&b0, &b1};
+        const Settings settings[2] = {static_cast<const ATrousPass&>(*passes[i]).s_,
+                                      static_cast<const ATrousPass&>(*passes[i + 1]).s_};
+        HWY_DYNAMIC_DISPATCH(filterFast)(ctx, b, 2, settings);
+    }
+    if (i < ios.size()) passes[i]->execute(ctx, *ios[i]);
+}
+
 void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
     if (!exact_) {
-        HWY_DYNAMIC_DISPATCH(filterFast)(ctx, io, s_);
+        const Bindings b0(io);
+        const Bindings* b[1] = {&b0};
+        HWY_DYNAMIC_DISPATCH(filterFast)(ctx, b, 1, &s_);
         return;
     }
     const Bindings b(io);

@@ -9,6 +9,9 @@ public:
     explicit ATrousPass(const kestrel::ParamValues& p);
     void resolve(kestrel::ResolveContext& rc) override;
     void execute(kestrel::FrameContext& ctx, kestrel::PassIO& io) override;
+    std::string fusionKey() const override;
+    void executeFused(kestrel::FrameContext& ctx, std::span<kestrel::Pass* const> passes,
+                      std::span<kestrel::PassIO* const> ios) override;
 
     struct Settings {
         int step = 1;
@@ -19,5 +22,6 @@ public:
 private:
     Settings s_;
     bool exact_ = false;
-    bool skipped_ = false;  // iteration >= iterations: passes its input through
+    bool skipped_ = false;       // iteration >= iterations: passes its input through
+    bool varianceBound_ = true;  // resolve: a pair fuses only with the same
 };

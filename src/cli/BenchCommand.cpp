@@ -36,6 +36,7 @@ struct BenchOptions {
     int threads = 0;
     int warmup = 2;
     bool noInputRow = false;
+    bool noFuse = false;
     std::vector<std::string> cropDumps;  ///< intermediates shown as crops in the report
 };
 
@@ -169,6 +170,7 @@ Prepared prepare(const Setting& s, const BenchRun& b) {
         }
         CompileOptions copt;
         copt.firstFrame = b.frames.front();
+        copt.fuse = !b.options.noFuse;
         p.compiled = compileGraph(g, b.registry, copt);
         for (const auto& pattern : b.options.cropDumps)
             for (const auto& r : matchResources(*p.compiled, pattern))
@@ -379,6 +381,8 @@ void addBenchCommand(CLI::App& app, Action& action) {
     cmd->add_option("--report", o->report, "Report folder");
     cmd->add_option("--tonemap", o->toneMap, "Tone map of PSNR/SSIM: reinhard, clamp, srgb");
     cmd->add_flag("--no-input-row", o->noInputRow, "Leave out the unfiltered-input row");
+    cmd->add_flag("--no-fuse", o->noFuse,
+                  "Run every pass on its own (no fused steps; same results, to measure fusion)");
     cmd->add_option("--crop-dump", o->cropDumps,
                     "Show the matching intermediate resources (pass.port or a shell pattern such "
                     "as '*atrous0.color') as crops beside each setting's output in the report; "

@@ -8,7 +8,8 @@
 namespace kestrel::cli {
 
 void addGraphCommand(CLI::App& app, Action& action) {
-    auto* cmd = app.add_subcommand("graph", "Compile a graph for a scene and show the result (Graphviz DOT)");
+    auto* cmd = app.add_subcommand(
+        "graph", "Compile a graph for a scene and show the result (Graphviz DOT)");
     auto o = std::make_shared<GraphOptions>();
     auto dot = std::make_shared<bool>(false);
     auto outFile = std::make_shared<std::string>();
@@ -42,8 +43,15 @@ void addGraphCommand(CLI::App& app, Action& action) {
                 text = compiled->toDot();
             } else {
                 for (const auto& n : compiled->executionOrder()) text += n + "\n";
-                for (const auto& p : compiled->report().pruned) text += "pruned " + p.pass + ": " + p.reason + "\n";
-                for (const auto& p : compiled->report().elided) text += "left out " + p.pass + ": " + p.reason + "\n";
+                for (const auto& p : compiled->report().pruned)
+                    text += "pruned " + p.pass + ": " + p.reason + "\n";
+                for (const auto& p : compiled->report().elided)
+                    text += "left out " + p.pass + ": " + p.reason + "\n";
+                for (const auto& f : compiled->report().fused) {
+                    text += "fused";
+                    for (size_t i = 0; i < f.size(); ++i) text += (i ? " + " : " ") + f[i];
+                    text += "\n";
+                }
             }
             if (outFile->empty()) {
                 std::cout << text;

@@ -41,6 +41,7 @@ struct RunOptions {
     bool resume = false;
     int warmup = 0;
     bool skipBadFrames = false;
+    bool noFuse = false;
     std::string size;                 // WxH for graphs without a source
     std::string reference, refLayer;  // print each frame's error against these frames
     std::vector<std::string> dumps;   // --dump patterns
@@ -53,6 +54,11 @@ void logReport(const CompiledGraph& g) {
     if (spdlog::should_log(spdlog::level::debug)) {  // -v: every note and left-out pass
         for (const auto& n : r.notes) spdlog::debug("scene: {}", n);
         for (const auto& p : r.elided) spdlog::debug("left out {}: {}", p.pass, p.reason);
+        for (const auto& f : r.fused) {
+            std::string names;
+            for (const auto& name : f) names += (names.empty() ? "" : " + ") + name;
+            spdlog::debug("fused: {}", names);
+        }
         for (const auto& p : r.pruned) spdlog::debug("pruned {}: {}", p.pass, p.reason);
         for (const auto& a : r.absent) spdlog::debug("absent {}", a);
     } else {
@@ -199,6 +205,7 @@ int runGraph(const RunOptions& o) {
         if (!o.reference.empty()) measured = markSinkInput(g, plugins->registry, false);
         CompileOptions copt;
         copt.firstFrame = frames.empty() ? 0 : frames.front();
+        copt.fuse = !o.noFuse;
         compiled = compileGraph(g, plugins->registry, copt);
         if (!o.dumps.empty()) {  // writers for what the compiled graph computes, then again
             const auto dumped = matchDumps(*compiled, o.dumps);
@@ -308,6 +315,8 @@ void addRunCommand(CLI::App& app, Action& action) {
         ->check(CLI::Range(0, 100000));
     cmd->add_option("--cuts", o->cuts,
                     "Camera cuts: frames (7,120 or 7-9) before which history is reset");
+    cmd->add_flag("--no-fuse", o->noFuse,
+                  "Run every pass on its own (no fused steps; same results, to measure fusion)");
     cmd->add_flag("--skip-bad-frames", o->skipBadFrames,
                   "Skip missing or corrupt frames (history is reset)");
     cmd->add_option(

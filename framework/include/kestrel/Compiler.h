@@ -20,6 +20,9 @@ struct CompileOptions {
     /// Let outputs declared PassDesc::inPlaceOf take over their input's memory where allowed;
     /// false gives every output memory of its own (to check a pass's in-place declaration).
     bool inPlace = true;
+    /// Run compatible passes fused (Pass::executeFused); false runs each on its own (results
+    /// are the same; to measure what fusion saves).
+    bool fuse = true;
 };
 
 /// Why a pass is not executed.
@@ -29,11 +32,12 @@ struct LeftOutPass {
 };
 
 struct CompileReport {
-    std::vector<std::string> notes;            ///< adaptation notes from resolve()
-    std::vector<LeftOutPass> pruned;           ///< contributes to no output
-    std::vector<LeftOutPass> elided;           ///< identity for this scene (outputs forwarded)
-    std::vector<std::string> absent;           ///< "pass.port: reason" outputs the scene lacks
-    std::map<std::string, std::string> facts;  ///< scene facts sources stated (ResolveContext)
+    std::vector<std::string> notes;               ///< adaptation notes from resolve()
+    std::vector<LeftOutPass> pruned;              ///< contributes to no output
+    std::vector<LeftOutPass> elided;              ///< identity for this scene (outputs forwarded)
+    std::vector<std::string> absent;              ///< "pass.port: reason" outputs the scene lacks
+    std::map<std::string, std::string> facts;     ///< scene facts sources stated (ResolveContext)
+    std::vector<std::vector<std::string>> fused;  ///< passes run as one step (executeFused)
 };
 
 /// A resource slot: one produced output, possibly sharing memory with others (aliasing).
@@ -47,7 +51,7 @@ struct ResourceInfo {
     bool doubleBuffered = false;
     int lastHistoryRead = -1;       ///< execution index of the last pass reading last frame's value
     bool marked = false;            ///< a graph output, kept to the end of the frame
-    int firstUse = 0, lastUse = 0;  ///< execution-order indices
+    int firstUse = 0, lastUse = 0;  ///< steps (execution indices where nothing is fused)
     std::vector<int> planes;        ///< physical plane slots (transient) it occupies
     /// The resource whose planes this one took over (written in place by its producer, see
     /// PassDesc::inPlaceOf), else -1.
@@ -76,6 +80,9 @@ public:
     int unaliasedPlaneCount() const;
     /// The transient planes idle while the pass at execution index k runs (PassIO::idlePlanes).
     const std::vector<int>& idlePlanes(size_t k) const;
+    /// The step of the pass at execution index k: passes fused into one step are adjacent in
+    /// the execution order and share it (CompileReport::fused); -1 past the end.
+    int stepOf(size_t k) const;
     /// Graphviz DOT: live and pruned passes, history edges dashed, shared memory noted.
     std::string toDot() const;
     /// Compact JSON of the passes and their effective parameters (provenance).

@@ -42,6 +42,8 @@ struct PassDesc {
     std::vector<PortDesc> ports;
     std::vector<ParamDesc> params;
     bool sink = false;  ///< writes outside the graph (files): always live, never pruned
+    /// Inputs that passes of this type must share to run fused (see fuseOn).
+    std::vector<std::string> fusedInputs;
 
     PassDesc(std::string type_, std::string description_)
         : type(std::move(type_)), description(std::move(description_)) {}
@@ -59,6 +61,9 @@ struct PassDesc {
     /// finished before the first write (AntiLag reads every pixel's validity first). Kernels must
     /// not declare the two pointers __restrict.
     PassDesc& inPlaceOf(std::string input);
+    /// Passes of this type may run fused (Pass::executeFused) when these inputs of each come
+    /// from the same outputs (or are all unbound): the work on them is then done once.
+    PassDesc& fuseOn(std::vector<std::string> inputs);
 
     PassDesc& paramFloat(std::string name, double def, double min, double max, std::string desc);
     PassDesc& paramInt(std::string name, int64_t def, int64_t min, int64_t max, std::string desc);
@@ -150,6 +155,16 @@ public:
     /// Throw FrameError for a missing or unreadable frame.
     virtual std::optional<Extent> beginFrame(FrameContext&) { return std::nullopt; }
     virtual void execute(FrameContext& ctx, PassIO& io) = 0;
+    /// Fusion, as Granite's render graph merges compatible render passes into one: live passes
+    /// of one type that declares PassDesc::fuseOn, whose fuseOn inputs come from the same
+    /// outputs, whose fusionKey() is equal and not empty, and none of which depends on another,
+    /// run as one step of the execution order (their memory is planned as one step's).
+    /// Empty (the default): never fused. Known after resolve().
+    virtual std::string fusionKey() const { return {}; }
+    /// Runs a fused step: `passes` (this one first) with their PassIO, in execution order.
+    /// The default runs each one's execute; results must equal that.
+    virtual void executeFused(FrameContext& ctx, std::span<Pass* const> passes,
+                              std::span<PassIO* const> ios);
     /// Sources: frame numbers available when the user gives no range (empty: unknown).
     virtual std::vector<int64_t> availableFrames() const { return {}; }
     /// Sinks: whether this frame's output already exists (for --resume).

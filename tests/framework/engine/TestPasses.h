@@ -350,6 +350,50 @@ public:
     }
 };
 
+/// out(x, y) = 0.5 (in(x, y) + in(x - 1, y)) + guide(x, y): reads a neighbour, so memory
+/// aliased under a pass still reading corrupts it. Fusable on `guide` when `key` > 0; its
+/// executeFused interleaves the members pixel by pixel (each member's pixel written before the
+/// next member's is read) and counts its calls.
+class GuidedPass : public Pass {
+public:
+    static inline int fusedCalls = 0;
+    static PassDesc describe() {
+        return PassDesc("Guided", "neighbour average plus a guide; fusable on the guide")
+            .input("in", Format::Float, "input")
+            .input("guide", Format::Float, "shared guide")
+            .output("out", Format::Float, "filtered")
+            .fuseOn({"guide"})
+            .paramInt("key", 0, 0, 100, "fusion key (0: never fused)");
+    }
+    explicit GuidedPass(const ParamValues& p) : key_(int(p.getInt("key"))) {}
+    std::string fusionKey() const override {
+        return key_ > 0 ? "key=" + std::to_string(key_) : std::string();
+    }
+    void execute(FrameContext&, PassIO& io) override {
+        PassIO* ios[1] = {&io};
+        filter(ios);
+    }
+    void executeFused(FrameContext&, std::span<Pass* const>,
+                      std::span<PassIO* const> ios) override {
+        ++fusedCalls;
+        filter(ios);
+    }
+
+private:
+    static void filter(std::span<PassIO* const> ios) {
+        const ImageView& o0 = ios[0]->output("out");
+        for (int y = 0; y < o0.height(); ++y)
+            for (int x = 0; x < o0.width(); ++x)
+                for (PassIO* io : ios) {
+                    const ImageView& in = io->input("in");
+                    const float left = in.at(0, x > 0 ? x - 1 : x, y);
+                    io->output("out").at(0, x, y) =
+                        0.5f * (in.at(0, x, y) + left) + io->input("guide").at(0, x, y);
+                }
+    }
+    int key_;
+};
+
 inline Registry testRegistry() {
     Registry r;
     r.add<ConstPass>();
@@ -370,6 +414,7 @@ inline Registry testRegistry() {
     r.add<ColorPass>();
     r.add<RowWorkPass>();
     r.add<ScribbleIdlePass>();
+    r.add<GuidedPass>();
     return r;
 }
 

@@ -57,6 +57,47 @@ BENCHMARK(BM_ATrous)
     ->UseRealTime()
     ->MinTime(1.0);
 
+// Two signals on one G-buffer (the diffuse and specular chains of a Blender render): fused
+// (Pass::executeFused, the geometric work shared per tap) against two separate passes, in
+// one run. state.range(0): step; state.range(1): threads; state.range(2): 1 fused, 0 apart.
+void BM_ATrousPair(benchmark::State& state) {
+    const Inputs& in = inputs();
+    static const RandomGBuffer second = randomGBuffer(kW, kH, 2);  // its colour only
+    const Image& color2 = second.color;
+    const Extent size{kW, kH};
+    const int threads = int(state.range(1));
+    const std::map<std::string, ParamValue> params = {{"step", int64_t(state.range(0))}};
+    auto a = PassHarness::make<ATrousPass>(size, params, threads);
+    auto b = PassHarness::make<ATrousPass>(size, params, threads);
+    const Image* colors[2] = {&in.g.color, &color2};
+    PassHarness* hs[2] = {&a, &b};
+    for (int i = 0; i < 2; ++i) {
+        hs[i]->bind("color", *colors[i]);
+        hs[i]->bind("variance", in.var);
+        hs[i]->bind("depth", in.g.depth);
+        hs[i]->bind("normal", in.g.normal);
+        hs[i]->bind("objectId", in.g.ids);
+        hs[i]->run();  // allocate outputs and scratch
+    }
+    Pass* passes[2] = {&a.pass(), &b.pass()};
+    PassIO* ios[2] = {&a, &b};
+    for (auto _ : state) {
+        if (state.range(2)) {
+            a.pass().executeFused(a.ctx, passes, ios);
+        } else {
+            a.run();
+            b.run();
+        }
+        benchmark::DoNotOptimize(b.out("color").channel(0)[0]);
+    }
+}
+BENCHMARK(BM_ATrousPair)
+    ->ArgsProduct({{1, 16}, {1, 2}, {0, 1}})
+    ->ArgNames({"step", "threads", "fused"})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->MinTime(1.0);
+
 // Per-pixel cost against the working set: state.range(0) x state.range(1) pixels at step
 // state.range(2), 1 thread. A small image's planes stay in L2 between runs, so the difference
 // to 1920x1080 is what the memory hierarchy costs (docs/benchmarks.md, roofline notes).

@@ -502,3 +502,91 @@ TEST(ATrous, ExactParameterRunsThePlainPath) {
     EXPECT_LE(maxScaledDiff(run.out("color"), refC, 0.f, &where), 2e-6) << where;
     EXPECT_LE(maxScaledDiff(run.out("variance"), refV, 0.f, &where), 2e-6) << where;
 }
+
+// --- Fusion (Pass::executeFused): two A-Trous passes on one G-buffer, filtered as a pair that
+// shares each tap's depth, normal and object-id work, give each pass's own result to the bit:
+// with its own sigmaL, on clean and on dirty inputs (the pair's band is then re-filtered from
+// sanitised copies), with and without the variance, at every step's border handling.
+namespace {
+struct FusedCase {
+    const char* what;
+    int width, step;
+    bool bindVar, dirty;
+};
+
+void expectFusedPairMatchesSeparatePasses(const FusedCase& c) {
+    const int w = c.width, h = 70;
+    RandomGBuffer g = randomGBuffer(w, h, 41);
+    RandomGBuffer g2 = randomGBuffer(w, h, 42);  // its colour only: a second signal
+    Image var = scalar(w, h, [](int x, int y) { return 0.01f + hash01(x, y, 43); });
+    Image var2 = scalar(w, h, [](int x, int y) { return 0.5f * hash01(x, y, 44); });
+    if (c.dirty) {
+        g2.color.at(1, 3, 20) = std::numeric_limits<float>::quiet_NaN();
+        var.at(0, w - 1, 50) = -1.f;
+    }
+    const std::map<std::string, ParamValue> params[2] = {
+        {{"step", int64_t(c.step)}, {"sigmaL", 4.0}, {"sigmaColor", 0.6}},
+        {{"step", int64_t(c.step)}, {"sigmaL", 6.5}, {"sigmaColor", 2.0}}};
+    const Image* colors[2] = {&g.color, &g2.color};
+    const Image* vars[2] = {&var, &var2};
+    auto make = [&](int i) {
+        auto harness = PassHarness::make<ATrousPass>(g.color.extent(), params[i], 2);
+        harness.bind("color", *colors[i]);
+        if (c.bindVar)
+            harness.bind("variance", *vars[i]);
+        else
+            harness.useOutputs({"color"});
+        harness.bind("depth", g.depth);  // the same images: a fused pair shares them
+        harness.bind("normal", g.normal);
+        harness.bind("objectId", g.ids);
+        return harness;
+    };
+    PassHarness a = make(0), b = make(1);
+    ASSERT_FALSE(a.pass().fusionKey().empty());
+    ASSERT_EQ(a.pass().fusionKey(), b.pass().fusionKey()) << "sigmaL is per signal";
+    a.run();
+    b.run();
+    const Image aColor = clone(a.out("color")), bColor = clone(b.out("color"));
+    const Image aVar = c.bindVar ? clone(a.out("variance")) : Image();
+    const Image bVar = c.bindVar ? clone(b.out("variance")) : Image();
+    for (PassHarness* harness : {&a, &b})  // the fused run must write every pixel again
+        for (const char* port : {"color", "variance"})
+            if (harness->hasOutput(port)) {
+                const ImageView& o = harness->output(port);
+                for (int ch = 0; ch < o.channels(); ++ch)
+                    std::fill_n(o.planes[size_t(ch)], o.pixels(),
+                                std::numeric_limits<float>::quiet_NaN());
+            }
+    Pass* passes[2] = {&a.pass(), &b.pass()};
+    PassIO* ios[2] = {&a, &b};
+    a.pass().executeFused(a.ctx, passes, ios);
+    EXPECT_TRUE(identical(a.out("color"), aColor)) << c.what;
+    EXPECT_TRUE(identical(b.out("color"), bColor)) << c.what;
+    if (c.bindVar) {
+        EXPECT_TRUE(identical(a.out("variance"), aVar)) << c.what;
+        EXPECT_TRUE(identical(b.out("variance"), bVar)) << c.what;
+    }
+}
+}  // namespace
+
+TEST_P(ATrousEveryTarget, FusedPairGivesEachPassItsOwnResultToTheBit) {
+    const FusedCase cases[] = {
+        {"step 1", 157, 1, true, false},       {"step 4", 157, 4, true, false},
+        {"step 16", 157, 16, true, false},     {"dirty inputs", 157, 2, true, true},
+        {"no variance", 157, 1, false, false}, {"narrower than a vector", 7, 1, true, false},
+    };
+    for (const FusedCase& c : cases) expectFusedPairMatchesSeparatePasses(c);
+}
+
+TEST(ATrous, PassesFuseOnlyWithTheSameGeometricSettings) {
+    auto key = [](std::map<std::string, ParamValue> p) {
+        return PassHarness::make<ATrousPass>({8, 8}, p).pass().fusionKey();
+    };
+    const std::string base = key({{"step", int64_t(2)}});
+    EXPECT_FALSE(base.empty());
+    EXPECT_EQ(base, key({{"step", int64_t(2)}, {"sigmaL", 9.0}, {"sigmaColor", 3.0}}));
+    EXPECT_NE(base, key({{"step", int64_t(4)}}));
+    EXPECT_NE(base, key({{"step", int64_t(2)}, {"sigmaZ", 2.0}}));
+    EXPECT_NE(base, key({{"step", int64_t(2)}, {"sigmaN", 64.0}}));
+    EXPECT_TRUE(key({{"step", int64_t(2)}, {"exact", true}}).empty());
+}
