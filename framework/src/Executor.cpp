@@ -196,12 +196,15 @@ void Executor::runFrame(int64_t frameNumber, bool writeOutputs) {
     ctx.parallel = &m.parallel;
     ctx.run = &m.run;
 
-    auto fail = [&](const NodeState& n, const std::exception& e) {
+    // `fusedWith`: the other passes of a fused step, named too (any of them may have failed).
+    auto fail = [&](const NodeState& n, const std::exception& e,
+                    const std::string& fusedWith = {}) {
         // A failed frame leaves history unusable: the next frame starts fresh.
         m.historyValid = false;
         m.hasPrevScene = false;
         std::string msg = "frame " + std::to_string(frameNumber) + ", pass '" + n.name + "' (" +
-                          n.type->desc.type + "): " + e.what();
+                          n.type->desc.type +
+                          (fusedWith.empty() ? "" : ", fused with " + fusedWith) + "): " + e.what();
         if (dynamic_cast<const FrameError*>(&e)) throw FrameError(msg);
         throw Error(msg);
     };
@@ -254,7 +257,11 @@ void Executor::runFrame(int64_t frameNumber, bool writeOutputs) {
                 n.pass->executeFused(ctx, fusedPasses, fusedIO);
             }
         } catch (const std::exception& e) {
-            fail(n, e);
+            std::string others;
+            for (size_t k = k0 + 1; k < k1; ++k)
+                others +=
+                    (others.empty() ? "'" : ", '") + m.g.nodes[size_t(m.g.order[k])].name + "'";
+            fail(n, e, others);
         }
         // A fused step's time is shared equally by its passes.
         const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();

@@ -363,19 +363,24 @@ public:
             .input("guide", Format::Float, "shared guide")
             .output("out", Format::Float, "filtered")
             .fuseOn({"guide"})
-            .paramInt("key", 0, 0, 100, "fusion key (0: never fused)");
+            .paramInt("key", 0, 0, 100, "fusion key (0: never fused)")
+            .paramBool("fail", false, "throw a FrameError instead of filtering");
     }
-    explicit GuidedPass(const ParamValues& p) : key_(int(p.getInt("key"))) {}
+    explicit GuidedPass(const ParamValues& p)
+        : key_(int(p.getInt("key"))), fail_(p.getBool("fail")) {}
     std::string fusionKey() const override {
         return key_ > 0 ? "key=" + std::to_string(key_) : std::string();
     }
     void execute(FrameContext&, PassIO& io) override {
+        if (fail_) throw FrameError("this pass fails");
         PassIO* ios[1] = {&io};
         filter(ios);
     }
-    void executeFused(FrameContext&, std::span<Pass* const>,
+    void executeFused(FrameContext&, std::span<Pass* const> passes,
                       std::span<PassIO* const> ios) override {
         ++fusedCalls;
+        for (Pass* p : passes)
+            if (static_cast<GuidedPass*>(p)->fail_) throw FrameError("a fused pass fails");
         filter(ios);
     }
 
@@ -392,6 +397,7 @@ private:
                 }
     }
     int key_;
+    bool fail_;
 };
 
 inline Registry testRegistry() {

@@ -120,5 +120,29 @@ TEST(Fusion, DependentPassesDifferentGuidesOrACycleAreNotFused) {
     EXPECT_EQ(out.size(), 44u);
 }
 
+// A failure in a fused step names every pass of it: any of them may have failed.
+TEST(Fusion, AFailingFusedStepNamesItsPasses) {
+    Registry r = testRegistry();
+    auto g = compileText(R"({"kestrel": 1, "passes": [
+        {"name": "ramp", "type": "Ramp"},
+        {"name": "p", "type": "Guided", "params": {"key": 1}},
+        {"name": "q", "type": "Guided", "params": {"key": 1, "fail": true}},
+        {"name": "sum", "type": "Sum"}],
+      "edges": [{"from": "ramp.out", "to": ["p.in", "q.in", "p.guide", "q.guide"]},
+        {"from": "p.out", "to": "sum.a"}, {"from": "q.out", "to": "sum.b"}],
+      "outputs": ["sum.out"]})",
+                         r);
+    ASSERT_EQ(g->report().fused.size(), 1u);
+    Parallel par(1);
+    Executor ex(*g, par, {}, {4, 4});
+    try {
+        ex.runFrame(3);
+        FAIL() << "the frame should fail";
+    } catch (const FrameError& e) {
+        EXPECT_EQ(std::string(e.what()),
+                  "frame 3, pass 'p' (Guided, fused with 'q'): a fused pass fails");
+    }
+}
+
 }  // namespace
 }  // namespace kestrel::enginetest
