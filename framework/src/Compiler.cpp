@@ -839,10 +839,17 @@ std::string CompiledGraph::toDot() const {
     std::map<std::string, std::string> leftOut;
     for (const auto& p : g.report.pruned) leftOut[p.pass] = "pruned: " + p.reason;
     for (const auto& p : g.report.elided) leftOut[p.pass] = "left out: " + p.reason;
+    std::map<std::string, std::string> fusedWith;  // pass -> the other passes of its step
+    for (const auto& step : g.report.fused)
+        for (const auto& pass : step)
+            for (const auto& other : step)
+                if (other != pass) fusedWith[pass] += (fusedWith[pass].empty() ? "" : ", ") + other;
     auto node = [&](const NodeState& n, const std::string& indent) {
         std::string type = n.type ? n.type->desc.type : "?";
         o << indent << "\"" << dotEscape(n.name) << "\" [label=\"" << dotEscape(n.name) << "\\n("
           << type << ")";
+        if (auto f = fusedWith.find(n.name); f != fusedWith.end())
+            o << "\\nfused with " << dotEscape(f->second);
         auto it = leftOut.find(n.name);
         if (it != leftOut.end())
             o << "\\n"

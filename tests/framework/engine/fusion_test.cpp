@@ -68,6 +68,7 @@ TEST(Fusion, IndependentPassesWithOneGuideRunAsOneStepWithTheSameResult) {
         EXPECT_EQ(fused->stepOf(size_t(at)), fused->stepOf(size_t(at) + 1));
     }
     expectNoSharedLivePlanes(*fused);
+    EXPECT_NE(fused->toDot().find("a1\\n(Guided)\\nfused with b1"), std::string::npos);
 
     GuidedPass::fusedCalls = 0;
     const std::vector<float> a = runOnce(*fused);
