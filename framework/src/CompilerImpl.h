@@ -41,8 +41,8 @@ struct CompiledGraph::Impl {
     std::vector<ResourceInfo> resources;
     int transientPlanes = 0;
     int unaliasedPlanes = 0;
-    /// Per execution index: the transient planes no resource occupies while that pass runs
-    /// (PassIO::idlePlanes).
+    /// Per step: the transient planes no resource occupies while its passes run
+    /// (PassIO::idlePlanes; CompiledGraph::idlePlanes maps an execution index to its step).
     std::vector<std::vector<int>> idlePlanes;
     CompileReport report;
     std::vector<std::pair<int, int>> marked;  ///< (node, port) of marked outputs

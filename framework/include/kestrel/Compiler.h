@@ -49,7 +49,7 @@ struct ResourceInfo {
     /// or after the producer writes this frame's. When every history reader runs first, the
     /// one buffer is read (last frame) and then overwritten (this frame).
     bool doubleBuffered = false;
-    int lastHistoryRead = -1;       ///< execution index of the last pass reading last frame's value
+    int lastHistoryRead = -1;       ///< step of the last pass reading last frame's value
     bool marked = false;            ///< a graph output, kept to the end of the frame
     int firstUse = 0, lastUse = 0;  ///< steps (execution indices where nothing is fused)
     std::vector<int> planes;        ///< physical plane slots (transient) it occupies

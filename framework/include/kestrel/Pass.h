@@ -162,7 +162,8 @@ public:
     /// Empty (the default): never fused. Known after resolve().
     virtual std::string fusionKey() const { return {}; }
     /// Runs a fused step: `passes` (this one first) with their PassIO, in execution order.
-    /// The default runs each one's execute; results must equal that.
+    /// The default runs each one's execute; results must equal that. The members' idlePlanes
+    /// are the same planes: members run at once must not both use them.
     virtual void executeFused(FrameContext& ctx, std::span<Pass* const> passes,
                               std::span<PassIO* const> ios);
     /// Sources: frame numbers available when the user gives no range (empty: unknown).

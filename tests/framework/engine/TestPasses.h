@@ -362,6 +362,7 @@ public:
             .input("in", Format::Float, "input")
             .input("guide", Format::Float, "shared guide")
             .output("out", Format::Float, "filtered")
+            .output("aux", Format::Float, "the guide, copied")
             .fuseOn({"guide"})
             .paramInt("key", 0, 0, 100, "fusion key (0: never fused)")
             .paramBool("fail", false, "throw a FrameError instead of filtering");
@@ -394,6 +395,8 @@ private:
                     const float left = in.at(0, x > 0 ? x - 1 : x, y);
                     io->output("out").at(0, x, y) =
                         0.5f * (in.at(0, x, y) + left) + io->input("guide").at(0, x, y);
+                    if (io->hasOutput("aux"))
+                        io->output("aux").at(0, x, y) = io->input("guide").at(0, x, y);
                 }
     }
     int key_;

@@ -3,6 +3,7 @@
 // member still reads is given to another member's output.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -102,7 +103,8 @@ TEST(Fusion, DependentPassesDifferentGuidesOrACycleAreNotFused) {
       "outputs": ["sum.out"]})",
                               r);
     EXPECT_TRUE(guides->report().fused.empty());
-    // {p, s} and {q, r}: p feeds q and r feeds s, so the two steps would each wait for the other.
+    // {p, s} and {q, r}: p feeds q and r feeds s, so the two steps would each wait for the
+    // other; the later group is left out and {p, s} runs fused, after r and before q.
     const char* crossed = R"({"kestrel": 1, "passes": [
         {"name": "ramp", "type": "Ramp"},
         {"name": "p", "type": "Guided", "params": {"key": 1}},
@@ -114,11 +116,35 @@ TEST(Fusion, DependentPassesDifferentGuidesOrACycleAreNotFused) {
         {"from": "q.out", "to": "sum.a"}, {"from": "s.out", "to": "sum.b"}],
       "outputs": ["sum.out"]})";
     auto cycle = compileText(crossed, r);
-    EXPECT_TRUE(cycle->report().fused.empty());
+    ASSERT_EQ(cycle->report().fused.size(), 1u);
+    EXPECT_EQ(cycle->report().fused[0], (std::vector<std::string>{"p", "s"}));
+    const auto order = cycle->executionOrder();
+    auto at = [&](const char* name) { return std::find(order.begin(), order.end(), name); };
+    EXPECT_LT(at("r"), at("s"));
+    EXPECT_LT(at("p"), at("q"));
+    CompileOptions apart;
+    apart.fuse = false;
+    auto separate = compileGraph(parseGraph(crossed), r, apart);
     GuidedPass::fusedCalls = 0;
     const std::vector<float> out = runOnce(*cycle);
-    EXPECT_EQ(GuidedPass::fusedCalls, 0);
-    EXPECT_EQ(out.size(), 44u);
+    EXPECT_EQ(GuidedPass::fusedCalls, 1);
+    const std::vector<float> ref = runOnce(*separate);
+    ASSERT_EQ(out.size(), ref.size());
+    EXPECT_EQ(std::memcmp(out.data(), ref.data(), out.size() * sizeof(float)), 0);
+}
+
+// Passes whose consumed outputs differ are not fused: each step's members produce the same.
+TEST(Fusion, PassesWithDifferentConsumedOutputsAreNotFused) {
+    Registry r = testRegistry();
+    auto g = compileText(R"({"kestrel": 1, "passes": [
+        {"name": "ramp", "type": "Ramp"},
+        {"name": "p", "type": "Guided", "params": {"key": 1}},
+        {"name": "q", "type": "Guided", "params": {"key": 1}}, {"name": "sink", "type": "Sink"}],
+      "edges": [{"from": "ramp.out", "to": ["p.in", "q.in", "p.guide", "q.guide"]},
+        {"from": "p.out", "to": "sink.in"}],
+      "outputs": ["q.out", "q.aux"]})",
+                         r);
+    EXPECT_TRUE(g->report().fused.empty());
 }
 
 // A failure in a fused step names every pass of it: any of them may have failed.
