@@ -233,6 +233,21 @@ std::optional<std::string> blenderLayer(const std::set<std::string>& channels) {
     return std::nullopt;
 }
 
+/// The canonical split's contract (docs/canonical-layout.md) is color == diffuse + specular +
+/// emission, so a file with the split but without the emission AOV still holds it: the rest of
+/// the colour (the sky, emitters). Without this the graphs would add no sky back (black).
+static void addCanonicalEmission(Plan& plan) {
+    const Recipe &color = *plan.find("color"), &diffuse = *plan.find("diffuse");
+    const Recipe& specular = *plan.find("specular");
+    Recipe& emission = *plan.find("emission");
+    if (!emission.absent || color.absent || diffuse.absent || specular.absent) return;
+    Recipe::Rest rest{color.terms, diffuse.terms, {}, Recipe::Rest::Part::Whole};
+    rest.passes.insert(rest.passes.end(), specular.terms.begin(), specular.terms.end());
+    emission.absent = false;
+    emission.rest = rest;
+    emission.why = describeTerms(emission);
+}
+
 Plan planCanonical(const ChannelSets& files) {
     Builder b(Layout::Canonical, files);
     b.set("color", {{""}});
@@ -246,6 +261,7 @@ Plan planCanonical(const ChannelSets& files) {
                 b.set(o.name, {{o.name}});
             }
         }
+    addCanonicalEmission(b.plan);
     return b.plan;
 }
 
