@@ -41,7 +41,7 @@ TEST_F(CliGroups, SetTakesInstancePathsGroupParametersAndPatterns) {
     EXPECT_EQ(bad.code, 2) << bad.all();
     const auto lines = bad.errorLines();
     ASSERT_EQ(lines.size(), 5u) << bad.all();  // atrous0..4 of the single chain
-    EXPECT_NE(lines[2].find("svgf-chain.json: groups.svgf-chain.passes[11].params.sigmaL "
+    EXPECT_NE(lines[2].find("svgf-chain.json: groups.svgf-chain.passes[12].params.sigmaL "
                             "(single.atrous2.sigmaL): expected number in"),
               std::string::npos)
         << lines[2];

@@ -222,8 +222,11 @@ TEST(SvgfFusion, SplitChainsFusedGiveTheSameOutput) {
     std::vector<std::vector<float>> a, b;
     const RunResult fused = runGraph("svgf.json", in, ref, frames, false, {}, true, &a, true);
     const RunResult apart = runGraph("svgf.json", in, ref, frames, false, {}, true, &b, false);
-    ASSERT_EQ(fused.report.fused.size(), 5u);  // atrous0 .. atrous4
-    for (int i = 0; i < 5; ++i) {
+    // atrous0 and atrous1. The specular chain runs 3 iterations: its atrous2 is its last, whose
+    // variance nobody reads, so it runs apart from diffuse's (members of a step produce the same
+    // outputs), as do diffuse's atrous3 and atrous4.
+    ASSERT_EQ(fused.report.fused.size(), 2u);
+    for (int i = 0; i < 2; ++i) {
         const std::string n = "atrous" + std::to_string(i);
         EXPECT_EQ(fused.report.fused[size_t(i)],
                   (std::vector<std::string>{"diffuse." + n, "specular." + n}));
