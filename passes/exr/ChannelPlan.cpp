@@ -240,12 +240,16 @@ static void addCanonicalEmission(Plan& plan) {
     const Recipe &color = *plan.find("color"), &diffuse = *plan.find("diffuse");
     const Recipe& specular = *plan.find("specular");
     Recipe& emission = *plan.find("emission");
+    if (emission.rest && emission.terms.empty()) {  // derived before: derive again
+        emission.rest.reset();
+        emission.absent = true;
+    }
     if (!emission.absent || color.absent || diffuse.absent || specular.absent) return;
     Recipe::Rest rest{color.terms, diffuse.terms, {}, Recipe::Rest::Part::Whole};
     rest.passes.insert(rest.passes.end(), specular.terms.begin(), specular.terms.end());
     emission.absent = false;
     emission.rest = rest;
-    emission.why = describeTerms(emission);
+    emission.why = "color - diffuse - specular (no emission channel)";
 }
 
 Plan planCanonical(const ChannelSets& files) {
@@ -336,6 +340,10 @@ Plan planBlender(const ChannelSets& files, const std::string& L) {
 }
 
 void addSplitRest(Plan& plan, const std::set<std::string>& keep) {
+    if (plan.layout == Layout::Canonical) {
+        if (!keep.count("emission")) addCanonicalEmission(plan);
+        return;
+    }
     const Recipe &color = *plan.find("color"), &diffuse = *plan.find("diffuse");
     Recipe &specular = *plan.find("specular"), &emission = *plan.find("emission");
     if (plan.layout != Layout::Blender || color.absent || diffuse.absent || specular.absent) return;

@@ -100,8 +100,9 @@ Plan planBlender(const ChannelSets& files, const std::string& layer);
 Plan planGames202(const ChannelSets& files);
 /// A Blender render with the diffuse/specular split: specular (or, where the channels parameter
 /// set specular, emission) takes the light no split pass holds (Recipe::Rest), so diffuse +
-/// specular + emission = color on every pixel. Again after the channels parameter changed one
-/// of them; `keep`: outputs it set, left alone.
+/// specular + emission = color on every pixel. A canonical file with the split but no emission
+/// channel: emission = color - diffuse - specular. Again after the channels parameter changed
+/// one of them; `keep`: outputs it set, left alone.
 void addSplitRest(Plan& plan, const std::set<std::string>& keep = {});
 /// The view layer holding "<layer>.Combined.R", or nullopt.
 std::optional<std::string> blenderLayer(const std::set<std::string>& channels);

@@ -218,8 +218,11 @@ void addRest(const Recipe::Rest& rest, const Planes& dest, int c, bool withEmiss
             out[i] += finitePositive(t[i] - splitEmission(emission[i], t[i]));
         return;
     }
+    // Without emission terms (a split without Emit/Env) none is taken: min(0, color) would take
+    // a negative colour (a pixel filter's negative lobe) out twice.
+    const bool anyEmission = withEmission && !rest.emission.empty();
     for (size_t i = 0; i < n; ++i) {
-        const float r = t[i] - std::min(emission[i], color[i]);
+        const float r = t[i] - (anyEmission ? std::min(emission[i], color[i]) : 0.f);
         out[i] += std::isfinite(r) ? r : 0.f;
     }
 }

@@ -9,7 +9,9 @@ PassDesc MixPass::describe() {
     d.input("a", Format::Float3, "the colour at weight 0")
         .input("b", Format::Float3, "the colour at weight 1")
         .output("color", Format::Float3, "the blend")
-        .paramFloat("weight", 0.5, 0.0, 1.0, "share of b; 0 and 1 forward an input unchanged");
+        .paramFloat("weight", 0.5, 0.0, 1.0,
+                    "share of b; 0 and 1 forward an input unchanged (otherwise non-finite input "
+                    "values count as 0)");
     return d;
 }
 

@@ -1,8 +1,9 @@
 // The shipped SVGF graphs written with groups (graphs/lib/svgf-chain.json, extends/drop) compute
 // what the flat graphs they replaced computed (issue 16). tests/graphs/flat/ keeps those flat
 // files as they were before the rewrite, with the graph changes made since written into them
-// by hand (each chain's colour history mixed by a Mix pass; the specular chain's A-Trous
-// iterations 3 and 4 left out): their pass "diffuse_atrous0" is the instance path
+// by a one-off script (commit 4917c75: each chain's colour history mixed by a Mix pass; the
+// specular chain's atrous3 and atrous4 given iterations 3, so they pass through and are left out
+// as in the group): their pass "diffuse_atrous0" is the instance path
 // "diffuse.atrous0" now (the first '_' of a chain pass became the instance's '.').
 #include <gtest/gtest.h>
 #include <kestrel/Compiler.h>

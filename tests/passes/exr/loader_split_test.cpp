@@ -194,20 +194,37 @@ TEST(ExrLoaderSplit, EmissionAloneReadsNoSplitPass) {
 // diffuse + specular + emission, so the emission is the rest of the colour, added back
 // unfiltered. The graphs added nothing back for it: the zoo street's sky came out black
 // (11.15 dB against 19.39 at 1 spp; 26.12 now, as with the emission AOV).
-TEST(ExrLoaderSplit, CanonicalSplitWithoutEmissionKeepsTheSky) {
-    TempDir tmp("split-canonical-no-emission");
+namespace {
+/// Canonical channels, grey per AOV: pixel 0 a surface with an emitter, 1 a plain surface, 2 the
+/// sky, 3 a pixel a filter's negative lobe made negative.
+Channels canonicalSplitWithoutEmission() {
     Channels ch;
     auto grey = [&](const std::string& layer, std::vector<float> v) {
         for (const char* c : {"R", "G", "B"}) ch[layer.empty() ? c : layer + "." + c] = v;
     };
-    // pixel 0: a surface with an emitter, 1: a plain surface, 2: the sky, 3: another surface.
-    grey("diffuse", {0.2f, 0.3f, 0.f, 0.1f});
-    grey("specular", {0.1f, 0.f, 0.f, 0.2f});
-    grey("", {0.5f, 0.3f, 0.7f, 0.3f});
-    auto h = loadFrame(tmp, ch);
+    grey("diffuse", {0.2f, 0.3f, 0.f, 0.05f});
+    grey("specular", {0.1f, 0.f, 0.f, 0.f});
+    grey("", {0.5f, 0.3f, 0.7f, -0.1f});
+    grey("alt", {0.6f, 0.3f, 0.7f, 0.05f});
+    return ch;
+}
+}  // namespace
+
+TEST(ExrLoaderSplit, CanonicalSplitWithoutEmissionKeepsTheSky) {
+    TempDir tmp("split-canonical-no-emission");
+    auto h = loadFrame(tmp, canonicalSplitWithoutEmission());
     expectSplitSumsToCombined(h);
     EXPECT_NEAR(h.out("emission").at(0, 0, 0), 0.2f, 1e-6f);
     EXPECT_NEAR(h.out("emission").at(0, 1, 0), 0.f, 1e-6f);
     EXPECT_NEAR(h.out("emission").at(0, 2, 0), 0.7f, 1e-6f);  // the sky, never filtered
     EXPECT_NEAR(h.out("specular").at(0, 2, 0), 0.f, 1e-6f);
+    EXPECT_NEAR(h.out("emission").at(0, 3, 0), -0.15f, 1e-6f);
+}
+
+// The channels parameter's colour is what the derived emission completes.
+TEST(ExrLoaderSplit, CanonicalDerivedEmissionFollowsTheChannelsParameter) {
+    TempDir tmp("split-canonical-override");
+    auto h = loadFrame(tmp, canonicalSplitWithoutEmission(), "color=alt");
+    expectSplitSumsToCombined(h);
+    EXPECT_NEAR(h.out("emission").at(0, 0, 0), 0.3f, 1e-6f);
 }

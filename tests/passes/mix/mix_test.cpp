@@ -59,4 +59,8 @@ TEST(Mix, NonFiniteInputsGiveFiniteOutputs) {
     h.bind("b", b);
     h.run();
     EXPECT_TRUE(allFinite(h.out("color")));
+    // Non-finite values count as 0: 0 + 0.5 * (2 - 0), 1 + 0.5 * (0 - 1).
+    EXPECT_FLOAT_EQ(h.out("color").at(0, 0, 0), 1.f);
+    EXPECT_FLOAT_EQ(h.out("color").at(1, 1, 0), 0.5f);
+    EXPECT_FLOAT_EQ(h.out("color").at(2, 2, 0), 0.5f);
 }
