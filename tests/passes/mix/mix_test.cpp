@@ -2,6 +2,7 @@
 
 #include <string>
 
+#include "../FactResolve.h"
 #include "../SvgfTestImages.h"
 #include "MixPass.h"
 
@@ -10,21 +11,9 @@ using namespace svgftest;
 using kestrel::testing::PassHarness;
 
 namespace {
-// Records which input a pass forwards its output to at compile time.
-class ForwardResolve final : public ResolveContext {
-public:
-    std::string forwardedFrom;
-    bool isBound(std::string_view) const override { return true; }
-    void forward(std::string_view, std::string_view in) override { forwardedFrom = in; }
-    void setAbsent(std::string_view, std::string) override {}
-    void note(std::string) override {}
-    int64_t firstFrame() const override { return 0; }
-    std::string_view passName() const override { return "mix"; }
-};
-
 std::string forwardedAt(double weight) {
     auto h = PassHarness::make<MixPass>({1, 1}, {{"weight", weight}});
-    ForwardResolve rc;
+    FactResolve rc;
     h.pass().resolve(rc);
     return rc.forwardedFrom;
 }
