@@ -38,6 +38,62 @@ int portIndex(const PassDesc& d, std::string_view name, PortKind kind) {
     return -1;
 }
 
+/// History memory lent to transient resources while it is idle (CompileOptions::historyIdle):
+/// last frame's value is dead once its last reader has run, until this frame's is written over
+/// it (one buffer) or to the end of the frame (two buffers: this frame's is in the other).
+class IdleHistory {
+public:
+    IdleHistory(const std::vector<ResourceInfo>& resources, int end) {
+        for (size_t h = 0; h < resources.size(); ++h) {
+            const ResourceInfo& r = resources[h];
+            if (!r.history) continue;
+            const int until = r.doubleBuffered ? end : r.firstUse;
+            for (int c = 0; c < channelCount(r.format); ++c)
+                planes_.push_back({{int(h), c}, r.lastHistoryRead + 1, until});
+        }
+    }
+
+    /// `count` planes idle through steps [first, last], now taken; none if there are fewer.
+    std::vector<HistoryPlane> take(int count, int first, int last) {
+        std::vector<Slot*> found;
+        for (Slot& s : planes_)
+            if (int(found.size()) < count && s.from <= first && last < s.until &&
+                s.busyUntil < first)
+                found.push_back(&s);
+        return claim(found, count, last);
+    }
+
+    /// Every plane of the one-buffer history resource `h`, idle from step `first` until its
+    /// producer writes it, now taken: that pass writes it in place of the resource taking them.
+    std::vector<HistoryPlane> takeWhole(int h, int first) {
+        std::vector<Slot*> found;
+        int count = 0;
+        for (Slot& s : planes_)
+            if (s.plane.resource == h) {
+                ++count;
+                if (s.from <= first && s.busyUntil < first) found.push_back(&s);
+            }
+        return claim(found, count, found.empty() ? 0 : found.front()->until);
+    }
+
+private:
+    struct Slot {
+        HistoryPlane plane;
+        int from, until;     // idle in steps [from, until)
+        int busyUntil = -1;  // last step of the resource holding it
+    };
+    static std::vector<HistoryPlane> claim(const std::vector<Slot*>& found, int count, int last) {
+        if (count == 0 || int(found.size()) < count) return {};
+        std::vector<HistoryPlane> out;
+        for (Slot* s : found) {
+            s->busyUntil = last;
+            out.push_back(s->plane);
+        }
+        return out;
+    }
+    std::vector<Slot> planes_;
+};
+
 class Compiler {
 public:
     Compiler(const GraphDesc& desc, const Registry& registry, const CompileOptions& options)
@@ -698,7 +754,8 @@ private:
         // reader has run. Outputs are taken before inputs are freed, so a pass never writes
         // into memory it reads, except in place: an output declared inPlaceOf an input takes
         // over that input's planes when this pass is the input's last reader (the pass is
-        // pointwise on the pair). History resources persist across frames and are never aliased.
+        // pointwise on the pair). History resources persist across frames; their memory is lent
+        // only while idle (IdleHistory).
         std::vector<bool> handedOver(g_->resources.size(), false);
         std::vector<int> stepSize(size_t(end), 0);
         for (int step : g_->stepOf) ++stepSize[size_t(step)];
@@ -723,9 +780,41 @@ private:
                 if (ports[p].kind == PortKind::Input && pr[p] == src) ++readers;
             const auto& s = g_->resources[size_t(src)];
             if (readers != 1 || s.history || s.marked || s.lastUse != k ||
-                handedOver[size_t(src)] || s.format != g_->resources[size_t(r)].format)
+                !s.historyPlanes.empty() || handedOver[size_t(src)] ||
+                s.format != g_->resources[size_t(r)].format)
                 return -1;
             return src;
+        };
+        // A one-buffer history resource whose producer writes it in place of a transient
+        // resource (its last reader there) can hold that resource from its first step, when
+        // last frame's value is read by then: e.g. the accumulated colour that a blend turns
+        // into next frame's history.
+        IdleHistory idleHistory(g_->resources, end);
+        const bool lend = options_.historyIdle;
+        auto inPlaceHistory = [&](int r) -> int {
+            const auto& s = g_->resources[size_t(r)];
+            if (!lend || !options_.inPlace || s.marked) return -1;
+            for (size_t h = 0; h < g_->resources.size(); ++h) {
+                const auto& hist = g_->resources[h];
+                if (!hist.history || hist.doubleBuffered || s.format != hist.format ||
+                    s.lastUse != hist.firstUse || stepSize[size_t(hist.firstUse)] != 1)
+                    continue;
+                const int v = producerNode[h];
+                const auto& ports = descOf(v).ports;
+                const auto& pr = node(v).portResource;
+                std::string inPlaceOf;
+                for (size_t p = 0; p < ports.size(); ++p)
+                    if (ports[p].kind == PortKind::Output && pr[p] == int(h))
+                        inPlaceOf = ports[p].inPlaceOf;
+                int readers = 0, through = 0;
+                for (size_t p = 0; p < ports.size(); ++p)
+                    if (ports[p].kind == PortKind::Input && pr[p] == r) {
+                        ++readers;
+                        through += ports[p].name == inPlaceOf && !node(v).portHistory[p];
+                    }
+                if (!inPlaceOf.empty() && readers == 1 && through == 1) return int(h);
+            }
+            return -1;
         };
         std::set<int> freePlanes;
         int nextPlane = 0;
@@ -739,11 +828,19 @@ private:
                 if (res.history || res.firstUse != k) continue;
                 int need = channelCount(res.format);
                 g_->unaliasedPlanes += need;
+                if (const int h = inPlaceHistory(int(r)); h >= 0) {
+                    res.historyPlanes = idleHistory.takeWhole(h, k);
+                    if (!res.historyPlanes.empty()) continue;
+                }
                 if (const int src = inPlaceSource(k, int(r)); src >= 0) {
                     res.planes = g_->resources[size_t(src)].planes;
                     res.inPlaceOf = src;
                     handedOver[size_t(src)] = true;
                     continue;
+                }
+                if (lend && !res.marked) {
+                    res.historyPlanes = idleHistory.take(need, k, res.lastUse);
+                    if (!res.historyPlanes.empty()) continue;
                 }
                 for (int c = 0; c < need; ++c) {
                     if (!freePlanes.empty()) {
@@ -758,7 +855,7 @@ private:
             firstUnused[size_t(k)] = nextPlane;
             for (size_t r = 0; r < g_->resources.size(); ++r) {
                 const auto& res = g_->resources[r];
-                if (!res.history && res.lastUse == k && !handedOver[r])
+                if (!res.history && res.historyPlanes.empty() && res.lastUse == k && !handedOver[r])
                     for (int pl : res.planes) freePlanes.insert(pl);
             }
         }
@@ -932,7 +1029,13 @@ std::string CompiledGraph::toDot() const {
                 if (r.history)
                     label += r.doubleBuffered ? "\\n[history, 2 buffers]"
                                               : "\\n[history, 1 buffer: read, then rewritten]";
-                else if (!r.planes.empty()) {
+                else if (!r.historyPlanes.empty()) {
+                    label += "\\n[idle history planes";
+                    for (const auto& hp : r.historyPlanes)
+                        label += " " + dotEscape(g.resources[size_t(hp.resource)].producer) + "/" +
+                                 std::to_string(hp.channel);
+                    label += "]";
+                } else if (!r.planes.empty()) {
                     label += "\\n[mem planes";
                     for (int pl : r.planes) label += " " + std::to_string(pl);
                     label += r.inPlaceOf >= 0 ? ", written in place]" : "]";

@@ -107,6 +107,10 @@ struct Executor::Impl {
             if (res.history) {
                 int buf = !res.doubleBuffered ? 0 : previous ? 1 - current : current;
                 v.planes[size_t(c)] = hist[buf][size_t(r)][size_t(c)].get();
+            } else if (!res.historyPlanes.empty()) {  // last frame's buffer, idle by now
+                const HistoryPlane& hp = res.historyPlanes[size_t(c)];
+                const int buf = g.resources[size_t(hp.resource)].doubleBuffered ? 1 - current : 0;
+                v.planes[size_t(c)] = hist[buf][size_t(hp.resource)][size_t(hp.channel)].get();
             } else {
                 v.planes[size_t(c)] = transient[size_t(res.planes[size_t(c)])].get();
             }

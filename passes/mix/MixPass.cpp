@@ -9,6 +9,7 @@ PassDesc MixPass::describe() {
     d.input("a", Format::Float3, "the colour at weight 0")
         .input("b", Format::Float3, "the colour at weight 1")
         .output("color", Format::Float3, "the blend")
+        .inPlaceOf("a")  // pointwise: reads a pixel of a before writing it
         .paramFloat("weight", 0.5, 0.0, 1.0,
                     "share of b; 0 and 1 forward an input unchanged (otherwise non-finite input "
                     "values count as 0)");

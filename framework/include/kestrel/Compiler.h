@@ -23,6 +23,10 @@ struct CompileOptions {
     /// Run compatible passes fused (Pass::executeFused); false runs each on its own (results
     /// are the same; to measure what fusion saves).
     bool fuse = true;
+    /// Let transient resources live in history memory while it is idle: last frame's value once
+    /// its last reader has run, until this frame's is written over it (or to the end of the
+    /// frame, where a second buffer holds this frame's). False keeps history memory to itself.
+    bool historyIdle = true;
 };
 
 /// Why a pass is not executed.
@@ -41,6 +45,14 @@ struct CompileReport {
 };
 
 /// A resource slot: one produced output, possibly sharing memory with others (aliasing).
+/// Channel `channel` of history resource `resource`: the buffer holding last frame's value (a
+/// double-buffered resource's other buffer holds this frame's).
+struct HistoryPlane {
+    int resource = -1;
+    int channel = 0;
+    bool operator==(const HistoryPlane&) const = default;
+};
+
 struct ResourceInfo {
     std::string producer;  ///< "pass.port"
     Format format = Format::Float;
@@ -56,6 +68,9 @@ struct ResourceInfo {
     /// The resource whose planes this one took over (written in place by its producer, see
     /// PassDesc::inPlaceOf), else -1.
     int inPlaceOf = -1;
+    /// Where a transient resource lives in history memory while that is idle (else empty, and
+    /// `planes` holds it): per channel, a plane of a history resource (see historyPlaneIdle).
+    std::vector<HistoryPlane> historyPlanes;
 };
 
 class CompiledGraph;

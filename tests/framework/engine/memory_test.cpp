@@ -295,6 +295,103 @@ TEST(Memory, NoInPlaceOverAGraphOutputOrAHistoryResource) {
         EXPECT_EQ(hx.output("sum.out").at(0, x, 1), 3.f * float(x + 10) + 1.f);
 }
 
+/// Every transient resource in history memory lies in its plane's idle window (after last
+/// frame's value was last read; before this frame's is written, or at that step when written
+/// over it in place), and no two resources alive at the same time share a history plane.
+void expectHistoryLentOnlyWhileIdle(const CompiledGraph& g) {
+    const auto& res = g.resources();
+    for (size_t i = 0; i < res.size(); ++i) {
+        for (const HistoryPlane& hp : res[i].historyPlanes) {
+            const ResourceInfo& h = res[size_t(hp.resource)];
+            ASSERT_TRUE(h.history) << res[i].producer;
+            EXPECT_GT(res[i].firstUse, h.lastHistoryRead) << res[i].producer;
+            if (!h.doubleBuffered) {
+                EXPECT_LE(res[i].lastUse, h.firstUse) << res[i].producer;
+            }
+            EXPECT_FALSE(res[i].marked) << res[i].producer;
+        }
+        for (size_t j = i + 1; j < res.size(); ++j) {
+            if (res[i].firstUse > res[j].lastUse || res[j].firstUse > res[i].lastUse) continue;
+            for (const HistoryPlane& a : res[i].historyPlanes)
+                for (const HistoryPlane& b : res[j].historyPlanes)
+                    EXPECT_FALSE(a == b) << res[i].producer << " and " << res[j].producer;
+        }
+    }
+}
+
+std::unique_ptr<CompiledGraph> compileWith(const std::string& json, const Registry& r,
+                                           bool historyIdle) {
+    CompileOptions o;
+    o.historyIdle = historyIdle;
+    return compileGraph(parseGraph(json), r, o);
+}
+
+// ramp.out is double-buffered (read as last frame's value after this frame's is written): once
+// `p` has read last frame's, that buffer is idle to the end of the frame and holds a.out.
+TEST(Memory, TransientLivesInLastFramesBufferAfterItsLastRead) {
+    Registry r = testRegistry();
+    const std::string json = R"({"kestrel": 1, "passes": [{"name": "ramp", "type": "Ramp"},
+        {"name": "p", "type": "Previous"}, {"name": "a", "type": "AddOne"},
+        {"name": "sum", "type": "Sum"}],
+        "edges": [{"from": "ramp.out", "to": "p.prev", "history": true},
+                  {"from": "p.out", "to": "a.in"},
+                  {"from": "a.out", "to": "sum.a"}, {"from": "p.out", "to": "sum.b"}],
+        "outputs": ["sum.out"]})";
+    auto lent = compileWith(json, r, true), own = compileWith(json, r, false);
+    expectHistoryLentOnlyWhileIdle(*lent);
+    for (const auto& res : lent->resources())
+        if (res.producer == "a.out") {
+            ASSERT_EQ(res.historyPlanes.size(), 1u);
+            EXPECT_EQ(lent->resources()[size_t(res.historyPlanes[0].resource)].producer,
+                      "ramp.out");
+        }
+    EXPECT_EQ(lent->transientPlaneCount(), 2);  // p.out and sum.out
+    EXPECT_EQ(own->transientPlaneCount(), 3);
+    Parallel par(2);
+    Executor ex(*lent, par, {}, Extent{5, 3}), ox(*own, par, {}, Extent{5, 3});
+    for (int frame = 1; frame <= 4; ++frame) {
+        ex.runFrame(frame);
+        ox.runFrame(frame);
+        for (int y = 0; y < 3; ++y)
+            for (int x = 0; x < 5; ++x) {
+                // Last frame's ramp intact: writing a.out into this frame's buffer would
+                // show here a frame later.
+                const float prev = frame == 1 ? -1.f : float(x + 10 * y);
+                ASSERT_EQ(ex.output("sum.out").at(0, x, y), 2.f * prev + 1.f) << frame;
+                ASSERT_EQ(ox.output("sum.out").at(0, x, y), 2.f * prev + 1.f) << frame;
+            }
+    }
+}
+
+// s.out is single-buffered (last frame's value read by `p` before `s` writes this frame's) and
+// written in place of a.out, its input: a.out lives in s.out's planes from its first step.
+TEST(Memory, TransientLivesInTheHistoryWrittenInPlaceOfIt) {
+    Registry r = testRegistry();
+    const std::string json = R"({"kestrel": 1, "passes": [{"name": "p", "type": "Previous"},
+        {"name": "a", "type": "AddOne"}, {"name": "s", "type": "ScaleInPlace"}],
+        "edges": [{"from": "s.out", "to": "p.prev", "history": true},
+                  {"from": "p.out", "to": "a.in"}, {"from": "a.out", "to": "s.in"}],
+        "outputs": ["s.out"]})";
+    auto lent = compileWith(json, r, true), own = compileWith(json, r, false);
+    expectHistoryLentOnlyWhileIdle(*lent);
+    for (const auto& res : lent->resources())
+        if (res.producer == "a.out") {
+            ASSERT_EQ(res.historyPlanes.size(), 1u);
+            EXPECT_EQ(lent->resources()[size_t(res.historyPlanes[0].resource)].producer, "s.out");
+        }
+    EXPECT_EQ(lent->transientPlaneCount(), 1);  // p.out
+    EXPECT_EQ(own->transientPlaneCount(), 2);
+    Parallel par(1);
+    Executor ex(*lent, par, {}, Extent{4, 2});
+    float expected = 1.f;  // s = 2 (p + 1) + 1, p = last frame's s (-1 on the first frame)
+    for (int frame = 1; frame <= 4; ++frame) {
+        ex.runFrame(frame);
+        EXPECT_TRUE(ScaleInPlacePass::lastRunInPlace);
+        for (int x = 0; x < 4; ++x) ASSERT_EQ(ex.output("s.out").at(0, x, 1), expected) << frame;
+        expected = 2.f * (expected + 1.f) + 1.f;
+    }
+}
+
 TEST(Memory, InPlaceDeclarationsAreChecked) {
     // Only after an output, only of a this-frame input of the same format.
     EXPECT_THROW(PassDesc("T", "").input("a", Format::Float, "").inPlaceOf("a"), Error);
