@@ -33,7 +33,15 @@ Pool& pool() {
 ScratchPool::Lease::Lease(size_t set, std::vector<float*> planes)
     : set_(set), planes_(std::move(planes)) {}
 
+ScratchPool::Lease::Lease(ScratchArena& arena, std::vector<size_t> pieces,
+                          std::vector<float*> planes)
+    : arena_(&arena), pieces_(std::move(pieces)), planes_(std::move(planes)) {}
+
 ScratchPool::Lease::~Lease() {
+    if (arena_) {
+        arena_->release(pieces_);
+        return;
+    }
     Pool& p = pool();
     std::lock_guard lock(p.mutex);
     p.sets[set_].inUse = false;
@@ -69,6 +77,48 @@ size_t ScratchPool::bytes() {
     for (const auto& s : p.sets)
         for (const auto& plane : s.planes) total += plane.pixels * sizeof(float);
     return total;
+}
+
+ScratchArena::ScratchArena(std::span<float* const> idlePlanes, size_t planePixels)
+    : planes_(idlePlanes.begin(), idlePlanes.end()), planePixels_(planePixels) {}
+
+ScratchPool::Lease ScratchArena::acquire(size_t count, size_t pixels) {
+    {
+        std::lock_guard lock(mutex_);
+        if (pieceFloats_ == 0 && !planes_.empty()) {
+            // Pieces start 64 bytes apart, as the planes do (allocatePlane).
+            pieceFloats_ = (std::max<size_t>(pixels, 1) + 15) / 16 * 16;
+            for (float* plane : planes_)
+                for (size_t at = 0; at + pieceFloats_ <= planePixels_; at += pieceFloats_)
+                    pieces_.push_back(plane + at);
+            taken_.assign(pieces_.size(), false);
+        }
+        if (pixels <= pieceFloats_) {
+            std::vector<size_t> found;
+            for (size_t i = 0; i < pieces_.size() && found.size() < count; ++i)
+                if (!taken_[i]) found.push_back(i);
+            if (found.size() == count) {
+                std::vector<float*> ptrs;
+                for (size_t i : found) {
+                    taken_[i] = true;
+                    ptrs.push_back(pieces_[i]);
+                }
+                ++lent_;
+                return ScratchPool::Lease(*this, std::move(found), std::move(ptrs));
+            }
+        }
+    }
+    return ScratchPool::acquire(count, pixels);
+}
+
+size_t ScratchArena::lentCount() const {
+    std::lock_guard lock(mutex_);
+    return lent_;
+}
+
+void ScratchArena::release(const std::vector<size_t>& pieces) {
+    std::lock_guard lock(mutex_);
+    for (size_t i : pieces) taken_[i] = false;
 }
 
 }  // namespace kestrel

@@ -449,9 +449,11 @@ void filterRange(int y0, int y1, int width, size_t pitch, int height, const ATro
 
 /// The fast path (everything but `exact`) for this target: one signal, or a fused pair
 /// (`signals` = 2) sharing the first's geometry and geometric settings; each signal's own
-/// settings give its luminance weight (sigmaL, sigmaColor).
+/// settings give its luminance weight (sigmaL, sigmaColor). Band scratch comes from the step's
+/// idle planes where they suffice (ScratchArena).
 void filterFast(FrameContext& ctx, const Bindings* const* b, int signals,
-                const ATrousPass::Settings* settings) {
+                const ATrousPass::Settings* settings, std::span<float* const> idle) {
+    ScratchArena arena(idle, ctx.extent.pixels());
     const int width = ctx.extent.width, height = ctx.extent.height;
     const ImageView &depth = b[0]->depth, &normal = b[0]->normal;
     const int32_t* ids = b[0]->ids;
@@ -499,7 +501,7 @@ void filterFast(FrameContext& ctx, const Bindings* const* b, int signals,
                 };
                 int planes = 0;
                 for (int k = 0; k < limit; ++k) planes += used(k);
-                auto lease = ScratchPool::acquire(size_t(planes), bandPixels);
+                auto lease = arena.acquire(size_t(planes), bandPixels);
                 float* scratch[kPlaneCount] = {};
                 for (int k = 0, next = 0; k < limit; ++k)
                     if (used(k)) scratch[k] = lease[size_t(next++)] + margin;
@@ -752,7 +754,7 @@ void ATrousPass::executeFused(FrameContext& ctx, std::span<Pass* const> passes,
         const Bindings* b[2] = {&b0, &b1};
         const Settings settings[2] = {static_cast<const ATrousPass&>(*passes[i]).s_,
                                       static_cast<const ATrousPass&>(*passes[i + 1]).s_};
-        HWY_DYNAMIC_DISPATCH(filterFast)(ctx, b, 2, settings);
+        HWY_DYNAMIC_DISPATCH(filterFast)(ctx, b, 2, settings, ios[i]->idlePlanes());
     }
     if (i < ios.size()) passes[i]->execute(ctx, *ios[i]);
 }
@@ -761,7 +763,7 @@ void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
     if (!exact_) {
         const Bindings b0(io);
         const Bindings* b[1] = {&b0};
-        HWY_DYNAMIC_DISPATCH(filterFast)(ctx, b, 1, &s_);
+        HWY_DYNAMIC_DISPATCH(filterFast)(ctx, b, 1, &s_, io.idlePlanes());
         return;
     }
     const Bindings b(io);

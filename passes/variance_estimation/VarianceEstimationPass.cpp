@@ -205,7 +205,8 @@ void estimateBlock(const Inputs& in, float* const* P, int base, int x0, int y, V
 
 /// The fast path (everything but `exact`) for this target.
 void estimate(FrameContext& ctx, const Inputs& in, const ImageView& outC, const ImageView* outV,
-              float minHist) {
+              float minHist, std::span<float* const> idle) {
+    ScratchArena arena(idle, ctx.extent.pixels());  // scratch from idle planes where they suffice
     const DF d;
     const int n = int(hn::Lanes(d));
     const int w = in.w;
@@ -277,7 +278,7 @@ void estimate(FrameContext& ctx, const Inputs& in, const ImageView& outC, const 
                 // The vector path: prepare the needed blocks' columns (with the taps' reach of
                 // 3 on either side) for the band's rows and halo, then estimate block by block.
                 const int base = std::max(0, y0 - kRadius), p1 = std::min(in.h, y1 + kRadius);
-                auto lease = ScratchPool::acquire(kPlaneCount, bandPixels);
+                auto lease = arena.acquire(kPlaneCount, bandPixels);
                 float* P[kPlaneCount];
                 for (int k = 0; k < kPlaneCount; ++k) P[k] = lease[size_t(k)];
                 for (int k0 = 0; k0 < blocks;) {
@@ -393,6 +394,6 @@ void VarianceEstimationPass::execute(FrameContext& ctx, PassIO& io) {
         return;
     }
 
-    HWY_DYNAMIC_DISPATCH(estimate)(ctx, in, outC, outV, minHist_);
+    HWY_DYNAMIC_DISPATCH(estimate)(ctx, in, outC, outV, minHist_, io.idlePlanes());
 }
 #endif  // HWY_ONCE

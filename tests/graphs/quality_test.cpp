@@ -9,6 +9,7 @@
 #include <kestrel/Executor.h>
 #include <kestrel/FramePattern.h>
 #include <kestrel/Plugin.h>
+#include <kestrel/Scratch.h>
 #include <scenegen/SceneGen.h>
 #include <unistd.h>
 
@@ -244,6 +245,25 @@ TEST(SvgfFusion, SplitChainsFusedGiveTheSameOutput) {
     for (size_t f = 0; f < frames.size(); ++f)
         EXPECT_EQ(std::memcmp(a[f].data(), b[f].data(), a[f].size() * sizeof(float)), 0)
             << "frame " << frames[f];
+}
+
+// A-Trous and variance estimation cut their band scratch from the planes the memory plan has
+// idle while they run (ScratchArena), so the scratch pool stays small: on the split, every step
+// has idle planes to spare but the first A-Trous pair's.
+TEST(SvgfMemory, SplitFiltersInIdlePlanes) {
+    auto street = scenegen::zooScene("street").options;
+    street.frames = 3;
+    street.width = 40;  // tall enough for a band's scratch (up to 128 rows) to fit in a plane
+    street.height = 400;
+    const fs::path scene = makeScene("street3", street);
+    const size_t before = ScratchPool::bytes();
+    runGraph("svgf.json", (scene / "noisy/frame_####.exr").string(),
+             (scene / "ref/frame_####.exr").string(), range(1, 3));
+    const double planes = double(ScratchPool::bytes() - before) /
+                          double(size_t(street.width) * size_t(street.height) * sizeof(float));
+    // The pair's 6 planes of 68-72 rows (and their margins) per thread, 2 threads: 2.95 planes
+    // here. Every lease from the pool: 7.7.
+    EXPECT_LT(planes, 4.0);
 }
 
 // svgf.json runs unchanged on a scene without emission, albedo and motion vectors: demodulation

@@ -1,8 +1,12 @@
 // ScratchPool: concurrent leases get distinct plane sets; a returned set is reused.
+// ScratchArena: leases cut from idle planes first, the pool when those run out.
 #include <gtest/gtest.h>
+#include <kestrel/Image.h>
 #include <kestrel/Scratch.h>
 
+#include <algorithm>
 #include <cstdint>
+#include <vector>
 
 namespace kestrel {
 namespace {
@@ -43,6 +47,51 @@ TEST(ScratchPool, EachPlaneGrowsOnlyToWhatItsLeasesAsk) {
     // Six more planes of 20000 values, not six (or ten) of 100000.
     EXPECT_LE(grown, 6 * 20000 * sizeof(float) + 6 * 4096) << "bytes added: " << grown;
     EXPECT_GE(ScratchPool::bytes(), before);
+}
+
+bool inside(const float* p, size_t count, const float* plane, size_t planePixels) {
+    return p >= plane && p + count <= plane + planePixels;
+}
+
+TEST(ScratchArena, LeasesComeFromIdlePlanesUntilTheyRunOut) {
+    const size_t planePixels = 1000;
+    PlaneStorage a = allocatePlane(planePixels), b = allocatePlane(planePixels);
+    const std::vector<float*> idle = {a.get(), b.get()};
+    auto inIdle = [&](const float* p, size_t n) {
+        return inside(p, n, a.get(), planePixels) || inside(p, n, b.get(), planePixels);
+    };
+    ScratchArena arena(idle, planePixels);
+    std::vector<const float*> seen;
+    {
+        // Pieces of 304 values (300 rounded to 64 bytes): three per plane, six in all.
+        auto first = arena.acquire(3, 300);
+        auto second = arena.acquire(3, 300);
+        for (size_t i = 0; i < 3; ++i) {
+            ASSERT_TRUE(inIdle(first[i], 300));
+            ASSERT_TRUE(inIdle(second[i], 300));
+            EXPECT_EQ(reinterpret_cast<uintptr_t>(first[i]) % 64, 0u) << "64-byte aligned";
+            seen.push_back(first[i]);
+            seen.push_back(second[i]);
+        }
+        for (size_t i = 0; i < seen.size(); ++i)  // disjoint pieces
+            for (size_t j = i + 1; j < seen.size(); ++j)
+                EXPECT_GE(std::max(seen[i], seen[j]) - std::min(seen[i], seen[j]), 300);
+        auto third = arena.acquire(1, 300);  // none left: from the pool
+        EXPECT_FALSE(inIdle(third[0], 300));
+        EXPECT_EQ(arena.lentCount(), 2u);
+    }
+    auto again = arena.acquire(6, 300);  // every piece returned
+    for (size_t i = 0; i < 6; ++i) EXPECT_TRUE(inIdle(again[i], 300));
+    auto larger = arena.acquire(1, 400);  // more than a piece: from the pool
+    EXPECT_FALSE(inIdle(larger[0], 400));
+    EXPECT_EQ(arena.lentCount(), 3u);
+}
+
+TEST(ScratchArena, WithoutIdlePlanesEveryLeaseIsThePools) {
+    ScratchArena arena({}, 1000);
+    auto lease = arena.acquire(2, 100);
+    lease[1][99] = 1.f;
+    EXPECT_EQ(arena.lentCount(), 0u);
 }
 
 }  // namespace
