@@ -9,7 +9,6 @@
 #include <kestrel/Compiler.h>
 #include <kestrel/Executor.h>
 #include <scenegen/SceneGen.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cstring>
@@ -22,6 +21,7 @@
 #include <tuple>
 
 #include "../GraphTestUtil.h"
+#include "../TempDir.h"
 
 namespace fs = std::filesystem;
 using namespace kestrel;
@@ -178,8 +178,7 @@ void expectBitIdentical(const std::string& input, int64_t first, int64_t last) {
 }
 
 fs::path scene(const std::string& name, scenegen::SceneOptions opt) {
-    const fs::path dir =
-        fs::temp_directory_path() / ("kestrel-groups-" + std::to_string(::getpid())) / name;
+    const fs::path dir = testutil::processTempDir() / name;
     if (!fs::exists(dir / "done")) {
         fs::create_directories(dir);
         scenegen::writeSequence(opt, dir);
@@ -250,8 +249,7 @@ fs::path flatWithIterations(int keep) {
         edges.push_back(e);
     }
     g["edges"] = edges;
-    const fs::path file =
-        fs::temp_directory_path() / ("kestrel-iterations-" + std::to_string(::getpid()) + ".json");
+    const fs::path file = testutil::processTempDir() / "iterations.json";
     std::ofstream(file) << g.dump(1);
     return file;
 }

@@ -11,7 +11,6 @@
 #include <kestrel/Plugin.h>
 #include <kestrel/Scratch.h>
 #include <scenegen/SceneGen.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -21,6 +20,7 @@
 #include <nlohmann/json.hpp>
 
 #include "../GraphTestUtil.h"
+#include "../TempDir.h"
 
 namespace fs = std::filesystem;
 using namespace kestrel;
@@ -29,8 +29,7 @@ namespace {
 
 /// A generated scene, made once per option set in a per-test-binary temp folder.
 fs::path makeScene(const std::string& name, scenegen::SceneOptions opt) {
-    fs::path dir =
-        fs::temp_directory_path() / ("kestrel-quality-" + std::to_string(::getpid())) / name;
+    const fs::path dir = testutil::processTempDir() / name;
     if (!fs::exists(dir / "done")) {  // once per test binary run
         fs::create_directories(dir);
         scenegen::writeSequence(opt, dir);

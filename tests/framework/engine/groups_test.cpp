@@ -2,7 +2,6 @@
 // history edges through group inputs, include and extends, errors at the definition's JSON path
 // naming the instance path, --set on instances, DOT clusters.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -10,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "TempDir.h"
 #include "TestPasses.h"
 
 namespace kestrel::enginetest {
@@ -247,9 +247,7 @@ TEST(Groups, StructuralErrors) {
 /// Writes files into a fresh folder; returns it.
 fs::path files(const std::vector<std::pair<std::string, std::string>>& contents) {
     static int n = 0;
-    const fs::path dir =
-        fs::temp_directory_path() /
-        ("kestrel-groups-" + std::to_string(::getpid()) + "-" + std::to_string(n++));
+    const fs::path dir = testutil::processTempDir() / ("files-" + std::to_string(n++));
     for (const auto& [name, text] : contents) {
         fs::create_directories((dir / name).parent_path());
         std::ofstream(dir / name) << text;
