@@ -21,6 +21,7 @@
 #include "kestrel/Executor.h"
 #include "kestrel/FramePattern.h"
 #include "kestrel/Log.h"
+#include "kestrel/Scratch.h"
 #include "kestrel/SequenceRunner.h"
 
 namespace kestrel::cli {
@@ -65,8 +66,11 @@ void logReport(const CompiledGraph& g) {
         for (const auto& line : groupNotes(r.notes)) spdlog::info("scene: {}", line);
         if (auto line = leftOutSummary(r); !line.empty()) spdlog::info("{}", line);
     }
-    spdlog::info("{} live passes; memory plan: {} transient planes (aliased from {})",
-                 g.executionOrder().size(), g.transientPlaneCount(), g.unaliasedPlaneCount());
+    int inHistory = 0;  // planes of transient resources kept in idle history memory
+    for (const auto& res : g.resources()) inHistory += int(res.historyPlanes.size());
+    spdlog::info("{} live passes; memory plan: {} transient planes (aliased from {}{})",
+                 g.executionOrder().size(), g.transientPlaneCount(), g.unaliasedPlaneCount(),
+                 inHistory ? fmt::format("; {} more in idle history memory", inHistory) : "");
 }
 
 /// --reference: each frame's error against the reference sequence, and their mean.
@@ -165,6 +169,8 @@ void logSummary(const SequenceResult& r, const Executor& exec, const CompiledGra
         r.skipped.empty() ? std::string() : fmt::format(", {} skipped", r.skipped.size()),
         median(frameTimes), exec.memory().peakBytes / 1e6,
         double(exec.memory().peakBytes) / double(std::max<size_t>(1, exec.extent().pixels())));
+    // Band scratch the passes could not cut from idle planes (ScratchArena), process-wide.
+    spdlog::debug("scratch pool: {:.1f} MB", double(ScratchPool::bytes()) / 1e6);
     if (!reference.errors.empty()) {
         double rel = 0, psnr = 0, ssim = 0;
         for (const auto& m : reference.errors) rel += m.relMse, psnr += m.psnr, ssim += m.ssim;
