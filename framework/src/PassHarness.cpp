@@ -1,5 +1,7 @@
 #include "kestrel/testing/PassHarness.h"
 
+#include <algorithm>
+
 #include "ParamCheck.h"
 
 namespace kestrel::testing {
@@ -36,10 +38,19 @@ PassHarness::PassHarness(PassDesc desc, std::unique_ptr<Pass> pass, Extent exten
 PassHarness::PassHarness(PassHarness&&) noexcept = default;
 PassHarness::~PassHarness() = default;
 
+void PassHarness::lendIdlePlanes(int count, float fill) {
+    idleStorage_.clear();
+    idle_.clear();
+    for (int i = 0; i < count; ++i) {
+        idleStorage_.push_back(allocatePlane(extent_.pixels()));
+        std::fill_n(idleStorage_.back().get(), extent_.pixels(), fill);
+        idle_.push_back(idleStorage_.back().get());
+    }
+}
+
 void PassHarness::bind(std::string_view input, const ImageView& image, bool valid) {
     const PortDesc* p = findPortOfKind(desc_, input, PortKind::Input);
-    if (!p)
-        throw Error(desc_.type + " has no input '" + std::string(input) + "'");
+    if (!p) throw Error(desc_.type + " has no input '" + std::string(input) + "'");
     inputs_[std::string(input)] = Bound{image, valid};
 }
 
@@ -48,7 +59,9 @@ void PassHarness::unbind(std::string_view input) {
     if (it != inputs_.end()) inputs_.erase(it);
 }
 
-void PassHarness::useOutputs(const std::vector<std::string>& outputs) { used_ = outputs; }
+void PassHarness::useOutputs(const std::vector<std::string>& outputs) {
+    used_ = outputs;
+}
 
 void PassHarness::run() {
     ctx.extent = extent_;
@@ -62,8 +75,7 @@ void PassHarness::run() {
     }
     for (const auto& name : used_) {
         const PortDesc* p = findPortOfKind(desc_, name, PortKind::Output);
-        if (!p)
-            throw Error(desc_.type + " has no output '" + name + "'");
+        if (!p) throw Error(desc_.type + " has no output '" + name + "'");
         auto it = outputs_.find(name);
         Format f = p->format == Format::Any ? Format::Float3 : p->format;
         if (it == outputs_.end() || it->second.extent() != extent_)
@@ -92,7 +104,9 @@ const ImageView& PassHarness::input(std::string_view name) const {
     return it->second.view;
 }
 
-bool PassHarness::historyValid(std::string_view name) const { return hasInput(name); }
+bool PassHarness::historyValid(std::string_view name) const {
+    return hasInput(name);
+}
 
 bool PassHarness::hasOutput(std::string_view name) const {
     for (const auto& u : used_)

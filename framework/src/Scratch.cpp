@@ -1,6 +1,7 @@
 #include "kestrel/Scratch.h"
 
 #include <algorithm>
+#include <cassert>
 #include <mutex>
 
 #include "kestrel/Image.h"
@@ -98,17 +99,20 @@ ScratchPool::Lease ScratchArena::acquire(size_t count, size_t pixels) {
             for (size_t i = 0; i < pieces_.size() && found.size() < count; ++i)
                 if (!taken_[i]) found.push_back(i);
             if (found.size() == count) {
-                std::vector<float*> ptrs;
-                for (size_t i : found) {
-                    taken_[i] = true;
-                    ptrs.push_back(pieces_[i]);
-                }
+                std::vector<float*> ptrs;  // all allocation before any piece is marked taken
+                for (size_t i : found) ptrs.push_back(pieces_[i]);
+                for (size_t i : found) taken_[i] = true;
                 ++lent_;
                 return ScratchPool::Lease(*this, std::move(found), std::move(ptrs));
             }
         }
     }
     return ScratchPool::acquire(count, pixels);
+}
+
+ScratchArena::~ScratchArena() {
+    // Every lease ends first: a lease's destructor gives its pieces back to this arena.
+    assert(std::none_of(taken_.begin(), taken_.end(), [](bool t) { return t; }));
 }
 
 size_t ScratchArena::lentCount() const {

@@ -68,9 +68,11 @@ void logReport(const CompiledGraph& g) {
     }
     int inHistory = 0;  // planes of transient resources kept in idle history memory
     for (const auto& res : g.resources()) inHistory += int(res.historyPlanes.size());
-    spdlog::info("{} live passes; memory plan: {} transient planes (aliased from {}{})",
-                 g.executionOrder().size(), g.transientPlaneCount(), g.unaliasedPlaneCount(),
-                 inHistory ? fmt::format("; {} more in idle history memory", inHistory) : "");
+    spdlog::info(
+        "{} live passes; memory plan: {} transient planes (aliased from {}{})",
+        g.executionOrder().size(), g.transientPlaneCount(), g.unaliasedPlaneCount(),
+        inHistory ? fmt::format("; {} planes' worth in idle history memory, at no cost", inHistory)
+                  : "");
 }
 
 /// --reference: each frame's error against the reference sequence, and their mean.

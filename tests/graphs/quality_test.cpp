@@ -20,6 +20,7 @@
 #include <nlohmann/json.hpp>
 
 #include "../GraphTestUtil.h"
+#include "../PlanChecks.h"
 #include "../TempDir.h"
 
 namespace fs = std::filesystem;
@@ -72,7 +73,8 @@ struct RunResult {
 RunResult runGraph(const std::string& graphName, const std::string& input, const std::string& ref,
                    const std::vector<int64_t>& frames, bool perFrame = false,
                    const std::vector<std::string>& sets = {}, bool inPlace = true,
-                   std::vector<std::vector<float>>* outputs = nullptr, bool fuse = true) {
+                   std::vector<std::vector<float>>* outputs = nullptr, bool fuse = true,
+                   bool historyIdle = true) {
     GraphDesc g = loadGraphFile(fs::path(KESTREL_SOURCE_DIR) / "graphs" / graphName);
     applyOverride(g, "input.path=" + nlohmann::json(input).dump());
     for (const auto& s : sets) applyOverride(g, s);
@@ -80,9 +82,10 @@ RunResult runGraph(const std::string& graphName, const std::string& input, const
     CompileOptions copt;
     copt.firstFrame = frames.front();
     copt.inPlace = inPlace;
-    copt.historyIdle = inPlace;
+    copt.historyIdle = inPlace && historyIdle;
     copt.fuse = fuse;
     auto compiled = compileGraph(g, testutil::builtPlugins(), copt);
+    testutil::expectHistoryLentOnlyWhileIdle(*compiled);
     RunResult r;
     r.executed = compiled->executionOrder();
     r.report = compiled->report();
@@ -188,7 +191,8 @@ TEST(SvgfQuality, StaticCameraErrorKeepsFallingAsFramesAccumulate) {
     EXPECT_LT(e16, e4);
 }
 
-// Demodulate, AntiLag and Modulate write outputs in place of inputs, and 9 transient resources
+// Demodulate, AntiLag, TemporalAccumulation (its variance) and Modulate write outputs in place of
+// inputs, and 9 transient resources
 // (TemporalAccumulation's colour among them, which the history mix then writes over in place)
 // live in history memory while it is idle (the compiled svgf.json needs 17 transient planes
 // instead of 19 on this point-sampled scene, where TAA is left out): the output must be the same
@@ -244,6 +248,33 @@ TEST(SvgfFusion, SplitChainsFusedGiveTheSameOutput) {
     for (size_t f = 0; f < frames.size(); ++f)
         EXPECT_EQ(std::memcmp(a[f].data(), b[f].data(), a[f].size() * sizeof(float)), 0)
             << "frame " << frames[f];
+}
+
+// Transient resources kept in history memory while it is idle (CompileOptions::historyIdle)
+// give the same output to the bit as memory of their own, on a jittered split, where TAA's
+// history, the albedo averaging's and both chains' run, and A-Trous runs in fused pairs; the
+// plan holds fewer transient planes. Every shipped-graph run here also checks that the lent
+// planes are idle (runGraph: testutil::expectHistoryLentOnlyWhileIdle).
+TEST(SvgfMemory, IdleHistoryGivesTheSameOutput) {
+    auto opt = scenegen::zooScene("street-jittered").options;
+    opt.frames = 5;
+    const fs::path scene = makeScene("jittered5", opt);
+    const std::string in = (scene / "noisy/frame_####.exr").string(),
+                      ref = (scene / "ref/frame_####.exr").string();
+    std::vector<std::vector<float>> a, b;
+    const RunResult lent =
+        runGraph("svgf.json", in, ref, range(1, 5), false, {}, true, &a, true, true);
+    const RunResult own =
+        runGraph("svgf.json", in, ref, range(1, 5), false, {}, true, &b, true, false);
+    EXPECT_TRUE(contains(lent.executed, "taa"));
+    EXPECT_FALSE(lent.report.fused.empty());
+    EXPECT_GT(lent.inIdleHistory, 0);
+    EXPECT_EQ(own.inIdleHistory, 0);
+    EXPECT_LT(lent.transientPlanes, own.transientPlanes);
+    ASSERT_EQ(a.size(), b.size());
+    for (size_t f = 0; f < a.size(); ++f)
+        EXPECT_EQ(std::memcmp(a[f].data(), b[f].data(), a[f].size() * sizeof(float)), 0)
+            << "frame " << f + 1;
 }
 
 // A-Trous and variance estimation cut their band scratch from the planes the memory plan has

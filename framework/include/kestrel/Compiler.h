@@ -44,7 +44,6 @@ struct CompileReport {
     std::vector<std::vector<std::string>> fused;  ///< passes run as one step (executeFused)
 };
 
-/// A resource slot: one produced output, possibly sharing memory with others (aliasing).
 /// Channel `channel` of history resource `resource`: the buffer holding last frame's value (a
 /// double-buffered resource's other buffer holds this frame's).
 struct HistoryPlane {
@@ -53,6 +52,7 @@ struct HistoryPlane {
     bool operator==(const HistoryPlane&) const = default;
 };
 
+/// A resource slot: one produced output, possibly sharing memory with others (aliasing).
 struct ResourceInfo {
     std::string producer;  ///< "pass.port"
     Format format = Format::Float;
@@ -69,7 +69,8 @@ struct ResourceInfo {
     /// PassDesc::inPlaceOf), else -1.
     int inPlaceOf = -1;
     /// Where a transient resource lives in history memory while that is idle (else empty, and
-    /// `planes` holds it): per channel, a plane of a history resource (see historyPlaneIdle).
+    /// `planes` holds it): per channel, a plane of a history resource
+    /// (CompileOptions::historyIdle).
     std::vector<HistoryPlane> historyPlanes;
 };
 

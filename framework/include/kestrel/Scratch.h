@@ -1,6 +1,7 @@
 #pragma once
-// Scratch planes for a pass's working data within one execute: a process-wide pool of plane
-// sets. A lease takes a free set (growing it to the size asked for) and gives it back when it
+// Scratch planes for a pass's working data within one execute. ScratchArena (below) cuts them
+// from the pass's idle planes first; ScratchPool is the process-wide pool of plane sets behind
+// it. A lease takes a free set (growing it to the size asked for) and gives it back when it
 // ends, so concurrent leases (one per band a thread filters) never share a set, and sets are
 // reused across bands, passes and frames instead of being reallocated. Not temporal state:
 // contents are undefined when a lease starts and die when it ends (temporal state goes through
@@ -53,6 +54,7 @@ public:
 class ScratchArena {
 public:
     ScratchArena(std::span<float* const> idlePlanes, size_t planePixels);
+    ~ScratchArena();
     ScratchArena(const ScratchArena&) = delete;
     ScratchArena& operator=(const ScratchArena&) = delete;
     /// As ScratchPool::acquire.

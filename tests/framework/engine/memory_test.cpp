@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "PlanChecks.h"
 #include "TestPasses.h"
 
 namespace kestrel::enginetest {
@@ -295,30 +296,6 @@ TEST(Memory, NoInPlaceOverAGraphOutputOrAHistoryResource) {
         EXPECT_EQ(hx.output("sum.out").at(0, x, 1), 3.f * float(x + 10) + 1.f);
 }
 
-/// Every transient resource in history memory lies in its plane's idle window (after last
-/// frame's value was last read; before this frame's is written, or at that step when written
-/// over it in place), and no two resources alive at the same time share a history plane.
-void expectHistoryLentOnlyWhileIdle(const CompiledGraph& g) {
-    const auto& res = g.resources();
-    for (size_t i = 0; i < res.size(); ++i) {
-        for (const HistoryPlane& hp : res[i].historyPlanes) {
-            const ResourceInfo& h = res[size_t(hp.resource)];
-            ASSERT_TRUE(h.history) << res[i].producer;
-            EXPECT_GT(res[i].firstUse, h.lastHistoryRead) << res[i].producer;
-            if (!h.doubleBuffered) {
-                EXPECT_LE(res[i].lastUse, h.firstUse) << res[i].producer;
-            }
-            EXPECT_FALSE(res[i].marked) << res[i].producer;
-        }
-        for (size_t j = i + 1; j < res.size(); ++j) {
-            if (res[i].firstUse > res[j].lastUse || res[j].firstUse > res[i].lastUse) continue;
-            for (const HistoryPlane& a : res[i].historyPlanes)
-                for (const HistoryPlane& b : res[j].historyPlanes)
-                    EXPECT_FALSE(a == b) << res[i].producer << " and " << res[j].producer;
-        }
-    }
-}
-
 std::unique_ptr<CompiledGraph> compileWith(const std::string& json, const Registry& r,
                                            bool historyIdle) {
     CompileOptions o;
@@ -338,7 +315,7 @@ TEST(Memory, TransientLivesInLastFramesBufferAfterItsLastRead) {
                   {"from": "a.out", "to": "sum.a"}, {"from": "p.out", "to": "sum.b"}],
         "outputs": ["sum.out"]})";
     auto lent = compileWith(json, r, true), own = compileWith(json, r, false);
-    expectHistoryLentOnlyWhileIdle(*lent);
+    testutil::expectHistoryLentOnlyWhileIdle(*lent);
     for (const auto& res : lent->resources())
         if (res.producer == "a.out") {
             ASSERT_EQ(res.historyPlanes.size(), 1u);
@@ -373,7 +350,7 @@ TEST(Memory, TransientLivesInTheHistoryWrittenInPlaceOfIt) {
                   {"from": "p.out", "to": "a.in"}, {"from": "a.out", "to": "s.in"}],
         "outputs": ["s.out"]})";
     auto lent = compileWith(json, r, true), own = compileWith(json, r, false);
-    expectHistoryLentOnlyWhileIdle(*lent);
+    testutil::expectHistoryLentOnlyWhileIdle(*lent);
     for (const auto& res : lent->resources())
         if (res.producer == "a.out") {
             ASSERT_EQ(res.historyPlanes.size(), 1u);
@@ -390,6 +367,29 @@ TEST(Memory, TransientLivesInTheHistoryWrittenInPlaceOfIt) {
         for (int x = 0; x < 4; ++x) ASSERT_EQ(ex.output("s.out").at(0, x, 1), expected) << frame;
         expected = 2.f * (expected + 1.f) + 1.f;
     }
+}
+
+// n.out's one buffer is idle from p's read until n writes it, but n reads a.out while writing:
+// without an in-place declaration (NeighbourAverage reads its left neighbour) a.out must not be
+// placed in n.out's planes (NeighbourAverage throws on aliased input and output).
+TEST(Memory, HistoryIsNotLentToItsWritersInputUnlessWrittenInPlace) {
+    Registry r = testRegistry();
+    const std::string json = R"({"kestrel": 1, "passes": [{"name": "p", "type": "Previous"},
+        {"name": "a", "type": "AddOne"}, {"name": "n", "type": "NeighbourAverage"}],
+        "edges": [{"from": "n.out", "to": "p.prev", "history": true},
+                  {"from": "p.out", "to": "a.in"}, {"from": "a.out", "to": "n.in"}],
+        "outputs": ["n.out"]})";
+    auto g = compileWith(json, r, true);
+    testutil::expectHistoryLentOnlyWhileIdle(*g);
+    for (const auto& res : g->resources())
+        if (res.producer == "a.out") {
+            EXPECT_TRUE(res.historyPlanes.empty());
+        }
+    Parallel par(1);
+    Executor ex(*g, par, {}, Extent{3, 1});
+    ex.runFrame(1);  // p = -1, a = 0, n = 0
+    ex.runFrame(2);  // p = 0, a = 1, n = 1
+    for (int x = 0; x < 3; ++x) EXPECT_EQ(ex.output("n.out").at(0, x, 0), 1.f);
 }
 
 TEST(Memory, InPlaceDeclarationsAreChecked) {

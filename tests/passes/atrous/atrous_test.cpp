@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 
 #include "../FactResolve.h"
@@ -383,6 +384,41 @@ TEST(ATrous, ScratchScalesWithTheBandNotTheFrame) {
     EXPECT_GT(ScratchPool::bytes(), 0u);
     EXPECT_LE(ScratchPool::bytes(), 2 * bandSet + 2 * 4096);
     EXPECT_LT(ScratchPool::bytes(), fullFrameSet * 6 / 10);
+}
+
+// Band scratch cut from the idle planes the plan lends (ScratchArena) gives the same output to
+// the bit as the pool's, the planes filled with NaN beforehand (a band reading scratch it did
+// not write would show), and leaves the pool as it was: the planes hold every thread's bands.
+TEST(ATrous, ScratchFromIdlePlanesGivesTheSameOutput) {
+    const int w = 97, h = 400;
+    RandomGBuffer g = randomGBuffer(w, h, 9);
+    Scene s{clone(g.color), scalar(w, h, [](int, int) { return 0.1f; }), clone(g.depth),
+            clone(g.normal), clone(g.ids)};
+    for (int64_t step : {1, 16}) {
+        const PassHarness own = runATrous(s, {{"step", step}}, 2);
+        const size_t pool = ScratchPool::bytes();
+        auto lent = PassHarness::make<ATrousPass>(s.color.extent(), {{"step", step}}, 2);
+        lent.lendIdlePlanes(2, std::numeric_limits<float>::quiet_NaN());
+        lent.bind("color", s.color);
+        lent.bind("variance", s.var);
+        lent.bind("depth", s.depth);
+        lent.bind("normal", s.normal);
+        lent.bind("objectId", s.id);
+        lent.run();
+        EXPECT_EQ(ScratchPool::bytes(), pool) << "step " << step;
+        const float* idle = lent.idlePlanes()[0];
+        EXPECT_FALSE(std::all_of(idle, idle + size_t(w) * size_t(h), [](float v) {
+            return std::isnan(v);
+        })) << "the idle planes were not used";
+        for (const char* out : {"color", "variance"}) {
+            const Image &a = own.out(out), &b = lent.out(out);
+            for (int c = 0; c < a.view().channels(); ++c)
+                EXPECT_EQ(std::memcmp(a.view().channel(c), b.view().channel(c),
+                                      a.view().pixels() * sizeof(float)),
+                          0)
+                    << out << " step " << step;
+        }
+    }
 }
 
 TEST_P(ATrousEveryTarget, VectorisedMatchesScalarReferenceOnExtremeInputs) {

@@ -11,6 +11,7 @@
 #include <string_view>
 #include <vector>
 
+#include "kestrel/Image.h"
 #include "kestrel/Pass.h"
 
 namespace kestrel::testing {
@@ -41,6 +42,10 @@ public:
     void run();
     const Image& out(std::string_view output) const;
     Pass& pass() { return *pass_; }
+    /// Gives the pass `count` idle planes (PassIO::idlePlanes) of the frame's size, each filled
+    /// with `fill` (NaN shows a pass reading what it did not write), as a graph's plan would.
+    void lendIdlePlanes(int count, float fill);
+    std::span<float* const> idlePlanes() const override { return idle_; }
 
     SceneData scene, previousScene;
     FrameContext ctx;
@@ -65,6 +70,8 @@ private:
     std::map<std::string, Image, std::less<>> outputs_;
     std::vector<std::string> used_;
     RunInfo run_;
+    std::vector<PlaneStorage> idleStorage_;
+    std::vector<float*> idle_;
 };
 
 }  // namespace kestrel::testing
