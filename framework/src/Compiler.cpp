@@ -759,16 +759,19 @@ private:
         std::vector<bool> handedOver(g_->resources.size(), false);
         std::vector<int> stepSize(size_t(end), 0);
         for (int step : g_->stepOf) ++stepSize[size_t(step)];
-        auto inPlaceSource = [&](int k, int r) -> int {
-            // Not in a fused step: its passes run at once, so any may still read the input.
-            if (stepSize[size_t(k)] != 1) return -1;
+        // The resource that output resource `r` may be written over (PassDesc::inPlaceOf):
+        // the declared input, read this frame through that port only, by a pass in a step of
+        // its own (in a fused step the passes run at once, so any may still read it); else -1.
+        auto inPlaceInput = [&](int r) -> int {
             const int v = producerNode[size_t(r)];
+            if (!options_.inPlace || stepSize[size_t(g_->resources[size_t(r)].firstUse)] != 1)
+                return -1;
             const auto& ports = descOf(v).ports;
             const auto& pr = node(v).portResource;
             int out = -1;
             for (size_t p = 0; p < ports.size(); ++p)
                 if (ports[p].kind == PortKind::Output && pr[p] == r) out = int(p);
-            if (!options_.inPlace || out < 0 || ports[size_t(out)].inPlaceOf.empty()) return -1;
+            if (out < 0 || ports[size_t(out)].inPlaceOf.empty()) return -1;
             int in = -1, readers = 0;
             for (size_t p = 0; p < ports.size(); ++p)
                 if (ports[p].kind == PortKind::Input &&
@@ -779,43 +782,34 @@ private:
             for (size_t p = 0; p < ports.size(); ++p)  // read through this port only
                 if (ports[p].kind == PortKind::Input && pr[p] == src) ++readers;
             const auto& s = g_->resources[size_t(src)];
-            if (readers != 1 || s.history || s.marked || s.lastUse != k ||
-                !s.historyPlanes.empty() || handedOver[size_t(src)] ||
+            if (readers != 1 || s.history || s.marked ||
                 s.format != g_->resources[size_t(r)].format)
                 return -1;
             return src;
         };
-        // A one-buffer history resource whose producer writes it in place of a transient
-        // resource (its last reader there) can hold that resource from its first step, when
-        // last frame's value is read by then: e.g. the accumulated colour that a blend turns
-        // into next frame's history.
+        // Transient output r takes over its input's planes when r's pass is the input's last
+        // reader and the input holds planes of its own.
+        auto inPlaceSource = [&](int k, int r) -> int {
+            const int src = inPlaceInput(r);
+            if (src < 0) return -1;
+            const auto& s = g_->resources[size_t(src)];
+            if (s.lastUse != k || !s.historyPlanes.empty() || handedOver[size_t(src)]) return -1;
+            return src;
+        };
+        // A one-buffer history resource written over a transient resource in place (its last
+        // reader there) can hold that resource from its first step, when last frame's value is
+        // read by then: e.g. the accumulated colour that a blend turns into next frame's
+        // history. writtenOver[r]: that history, else -1.
         IdleHistory idleHistory(g_->resources, end);
         const bool lend = options_.historyIdle;
-        auto inPlaceHistory = [&](int r) -> int {
-            const auto& s = g_->resources[size_t(r)];
-            if (!lend || !options_.inPlace || s.marked) return -1;
-            for (size_t h = 0; h < g_->resources.size(); ++h) {
-                const auto& hist = g_->resources[h];
-                if (!hist.history || hist.doubleBuffered || s.format != hist.format ||
-                    s.lastUse != hist.firstUse || stepSize[size_t(hist.firstUse)] != 1)
-                    continue;
-                const int v = producerNode[h];
-                const auto& ports = descOf(v).ports;
-                const auto& pr = node(v).portResource;
-                std::string inPlaceOf;
-                for (size_t p = 0; p < ports.size(); ++p)
-                    if (ports[p].kind == PortKind::Output && pr[p] == int(h))
-                        inPlaceOf = ports[p].inPlaceOf;
-                int readers = 0, through = 0;
-                for (size_t p = 0; p < ports.size(); ++p)
-                    if (ports[p].kind == PortKind::Input && pr[p] == r) {
-                        ++readers;
-                        through += ports[p].name == inPlaceOf && !node(v).portHistory[p];
-                    }
-                if (!inPlaceOf.empty() && readers == 1 && through == 1) return int(h);
-            }
-            return -1;
-        };
+        std::vector<int> writtenOver(g_->resources.size(), -1);
+        for (size_t h = 0; h < g_->resources.size() && lend; ++h) {
+            const auto& hist = g_->resources[h];
+            if (!hist.history || hist.doubleBuffered) continue;
+            if (const int src = inPlaceInput(int(h));
+                src >= 0 && g_->resources[size_t(src)].lastUse == hist.firstUse)
+                writtenOver[size_t(src)] = int(h);
+        }
         std::set<int> freePlanes;
         int nextPlane = 0;
         // Idle while step k runs: free after its outputs are placed, before its inputs are
@@ -828,8 +822,8 @@ private:
                 if (res.history || res.firstUse != k) continue;
                 int need = channelCount(res.format);
                 g_->unaliasedPlanes += need;
-                if (const int h = inPlaceHistory(int(r)); h >= 0) {
-                    res.historyPlanes = idleHistory.takeWhole(h, k);
+                if (writtenOver[r] >= 0) {
+                    res.historyPlanes = idleHistory.takeWhole(writtenOver[r], k);
                     if (!res.historyPlanes.empty()) continue;
                 }
                 if (const int src = inPlaceSource(k, int(r)); src >= 0) {

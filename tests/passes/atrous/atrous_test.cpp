@@ -34,8 +34,9 @@ struct Scene {
 
 PassHarness runATrous(const Scene& s, std::map<std::string, ParamValue> params = {},
                       int threads = 1, bool bindVar = true, bool bindId = true,
-                      float depthPrecision = 0.f) {
+                      float depthPrecision = 0.f, int nanIdlePlanes = 0) {
     auto h = PassHarness::make<ATrousPass>(s.color.extent(), params, threads);
+    if (nanIdlePlanes > 0) h.lendIdlePlanes(nanIdlePlanes, std::numeric_limits<float>::quiet_NaN());
     if (depthPrecision > 0.f) {  // the loader's fact for depth stored as half
         svgftest::FactResolve facts(kDepthPrecisionFact, std::to_string(depthPrecision));
         h.pass().resolve(facts);
@@ -397,14 +398,7 @@ TEST(ATrous, ScratchFromIdlePlanesGivesTheSameOutput) {
     for (int64_t step : {1, 16}) {
         const PassHarness own = runATrous(s, {{"step", step}}, 2);
         const size_t pool = ScratchPool::bytes();
-        auto lent = PassHarness::make<ATrousPass>(s.color.extent(), {{"step", step}}, 2);
-        lent.lendIdlePlanes(2, std::numeric_limits<float>::quiet_NaN());
-        lent.bind("color", s.color);
-        lent.bind("variance", s.var);
-        lent.bind("depth", s.depth);
-        lent.bind("normal", s.normal);
-        lent.bind("objectId", s.id);
-        lent.run();
+        const PassHarness lent = runATrous(s, {{"step", step}}, 2, true, true, 0.f, 2);
         EXPECT_EQ(ScratchPool::bytes(), pool) << "step " << step;
         const float* idle = lent.idlePlanes()[0];
         EXPECT_FALSE(std::all_of(idle, idle + size_t(w) * size_t(h), [](float v) {
