@@ -72,9 +72,11 @@ TEST(TemporalAccumulation, FireflyIsClampedBeforeEnteringHistory) {
     Image cur = constant(5, 5, Format::Float3, 1.f);
     for (int c = 0; c < 3; ++c) cur.at(c, 2, 2) = 1e6f;
     auto clamped = step(cur, nullptr);
-    // Neighbours are all 1 (stddev 0): the firefly is scaled down to luminance 1.
+    // Neighbours are all 1 (stddev 0): the firefly is scaled down to luminance 1; its moments
+    // take at most twice that bound.
     EXPECT_NEAR(clamped.out("color").at(0, 2, 2), 1.f, 1e-5f);
-    EXPECT_NEAR(clamped.out("moments").at(1, 2, 2), 1.f, 1e-4f);
+    EXPECT_NEAR(clamped.out("moments").at(0, 2, 2), 2.f, 1e-5f);
+    EXPECT_NEAR(clamped.out("moments").at(1, 2, 2), 4.f, 1e-4f);
     auto off = step(cur, nullptr, {{"fireflySigma", 0.0}});
     EXPECT_FLOAT_EQ(off.out("color").at(0, 2, 2), 1e6f);
     // A bright sample consistent with its own (bright, noisy) history is kept.
@@ -89,6 +91,25 @@ TEST(TemporalAccumulation, FireflyIsClampedBeforeEnteringHistory) {
     for (int c = 0; c < 3; ++c) bright.at(c, 2, 2) = 20.f;
     auto kept = step(bright, &hist);
     EXPECT_NEAR(kept.out("color").at(0, 2, 2), 1.f + 0.2f * (20.f - 1.f), 1e-5f);
+}
+
+// A noise-free highlight under a still camera (a glint, a sun reflection at 1 spp) is bright
+// against its neighbours every frame. Its first frames are clamped as a firefly would be, but its
+// history bound rises until it passes; with the moments held at the bound it stayed at the
+// neighbours' level for good (a dim street's still-camera glossy region: 0.644 of the input's MSE
+// against 0.575).
+TEST(TemporalAccumulation, RecurringBrightSampleRisesThroughTheClamp) {
+    Image cur = constant(5, 5, Format::Float3, 1.f);
+    for (int c = 0; c < 3; ++c) cur.at(c, 2, 2) = 20.f;
+    auto first = step(cur, nullptr);
+    EXPECT_NEAR(first.out("color").at(0, 2, 2), 1.f, 1e-5f);
+    History hist = keep(first);
+    for (int f = 1; f < 24; ++f) {
+        auto h = step(cur, &hist);
+        hist = keep(h);
+    }
+    EXPECT_GT(hist.color.at(0, 2, 2), 19.f);
+    EXPECT_NEAR(hist.color.at(0, 1, 2), 1.f, 1e-5f);  // the neighbours are untouched
 }
 
 TEST(TemporalAccumulation, NonFiniteInputsGiveFiniteOutputs) {
