@@ -46,9 +46,6 @@ struct Params {
     float alpha, momentsAlpha, cap, k;
 };
 
-/// Above this multiple of the firefly bound a clamped sample raises the moments (see pixel()).
-constexpr float kBoundGrowth = 2.f;
-
 /// One row's planes. Inputs that are not fed point at neutral rows (see execute); outputs that
 /// are not consumed at scratch rows.
 struct Row {
@@ -90,12 +87,11 @@ __attribute__((always_inline)) inline void pixel(Params p, const Row& r, int x, 
     c0 = clamp ? c0 * s : c0;
     c1 = clamp ? c1 * s : c1;
     c2 = clamp ? c2 * s : c2;
-    // The moments take a sample far above the bound at more than the bound (b + min(max(l - 2b,
-    // 0), b), up to 2b): one that recurs (a noise-free highlight under a still camera, a glint)
-    // raises its own history bound frame by frame until it passes, where the colour alone held
-    // it at the neighbours' bound for good. A sample just above the bound (a noise tail) enters
-    // at the bound as before, and a one-off firefly adds at most 2b to the variance.
-    l = clamp ? bz + std::min(std::max(l - kBoundGrowth * bz, 0.f), bz) : l;
+    // A clamped sample enters the moments at l - b, held to [b, 2b]: one far above the bound
+    // raises its own history bound, so a sample that recurs (a noise-free highlight under a still
+    // camera, a glint) passes within a few frames where at b it stayed at the neighbours' level
+    // for good; a noise tail (l <= 2b) enters at b as before, a one-off firefly at most at 2b.
+    l = clamp ? std::min(std::max(l - bz, bz), 2.f * bz) : l;
     const float hl = valid ? std::min(cap, hPrev + 1.f) : 1.f;
     const float ac = std::max(alpha, 1.f / hl), am = std::max(momentsAlpha, 1.f / hl);
     const bool useC = HasC && valid;

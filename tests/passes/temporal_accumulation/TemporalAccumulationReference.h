@@ -84,10 +84,9 @@ inline Outputs accumulate(const Image& color, const Image* prevColor, const Imag
                 if (l > bound) {
                     const float s = std::max(bound, 0.f) / l;
                     for (float& v : c) v *= s;
-                    // The moments take b + min(max(l - 2b, 0), b): a sample far above the
-                    // bound raises its own history bound, so a recurring one passes.
+                    // The moments take l - b, held to [b, 2b], so a recurring sample passes.
                     const float b = std::max(bound, 0.f);
-                    l = b + std::min(std::max(l - 2.f * b, 0.f), b);
+                    l = std::min(std::max(l - b, b), 2.f * b);
                 }
             }
             const float hl = valid ? std::min(cap, hPrev + 1.f) : 1.f;
