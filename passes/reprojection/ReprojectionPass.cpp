@@ -16,6 +16,8 @@
 #include <type_traits>
 #include <vector>
 
+#include "DepthChangeModel.h"
+
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "ReprojectionPass.cpp"
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
@@ -505,8 +507,8 @@ inline int nextFlag(const uint8_t* flags, int from, int end) {
 thread_local Scratch tScratch;
 
 /// The pass for this target (the `filter` and threshold parameters as arguments).
-void reproject(FrameContext& ctx, PassIO& io, bool catmullRom_, float depthThreshold_,
-               float normalThreshold_, float depthPrecision_) {
+void reproject(FrameContext& ctx, PassIO& io, bool catmullRom_, bool cameraDepth_,
+               float depthThreshold_, float normalThreshold_, float depthPrecision_) {
     const int w = ctx.extent.width, h = ctx.extent.height;
     const ImageView* outC = io.hasOutput("color") ? &io.output("color") : nullptr;
     const ImageView* outM = io.hasOutput("moments") ? &io.output("moments") : nullptr;
@@ -560,6 +562,22 @@ void reproject(FrameContext& ctx, PassIO& io, bool catmullRom_, float depthThres
     // neither the derivatives nor the tests are computed.
     const bool geometry = std::isfinite(S.dThr) || std::isfinite(S.nThr2);
     const int lo = cr ? 1 : 0, hi = cr ? 2 : 1;
+    // With motion vectors only, the depth a static surface had last frame comes from a camera
+    // model fitted to this frame's correspondences (DepthChangeModel.h); the identity otherwise.
+    DepthChangeModel depthChange;
+    if (motion && cameraDepth_ && std::isfinite(S.dThr)) {
+        const DepthChangeInputs fit{w,
+                                    h,
+                                    depth.channel(0),
+                                    motion->channel(0),
+                                    motion->channel(1),
+                                    ids,
+                                    pDepth.channel(0),
+                                    S.pIds,
+                                    S.dThr,
+                                    depthPrecision_};
+        depthChange = fitDepthChange(fit);
+    }
 
     ctx.parallelRows(h, [&](int ya, int yb) {
         // Local copies: int stores to the scratch rows could otherwise alias the captured
@@ -654,12 +672,13 @@ void reproject(FrameContext& ctx, PassIO& io, bool catmullRom_, float depthThres
                 // rOk holds 0 where the position is unusable (no surface on the matrix path).
                 if (motion) {
                     const float *mx = motion->row(0, y), *my = motion->row(1, y);
-                    const float fy0 = float(y) + 0.5f;
+                    const float fy0 = float(y) + 0.5f, rowTerm = depthChange.rowTerm(y);
 #pragma GCC ivdep
                     for (int x = a; x < b; ++x) {
                         rPpx[x] = (float(x) + 0.5f) + mx[x];
                         rPpy[x] = fy0 + my[x];
-                        rZRef[x] = px::sanitizeDepth(zRow[x]);
+                        const float z = px::sanitizeDepth(zRow[x]);
+                        rZRef[x] = z < kBackgroundDepth ? depthChange.predict(z, x, rowTerm) : z;
                         rOk[x] = 1;
                     }
                 } else if (matrices) {
@@ -816,7 +835,12 @@ PassDesc ReprojectionPass::describe() {
         .paramEnum("filter", "bilinear", {"bilinear", "catmullrom"},
                    "colour resampling: bilinear (SVGF) or Catmull-Rom 4x4 (sharp, for TAA)")
         .paramFloat("depthThreshold", 10.0, 0.0, 1e6,
-                    "max |z - z_prev| / (fwidth(z) + 0.01) of a consistent tap")
+                    "max |z_expected - z_prev| / (fwidth(z) + 0.01) of a consistent tap")
+        .paramEnum("depthPrediction", "camera", {"camera", "none"},
+                   "z_expected with motion vectors: camera (z_prev = z (a u + b v + c) + d, "
+                   "a pinhole camera's rigid motion fitted per frame to the motion vectors' "
+                   "correspondences, so a dollying camera keeps the history of surfaces facing "
+                   "it) or none (z itself, SVGF's test); the matrix path uses the matrices")
         .paramFloat("normalThreshold", 16.0, 0.0, 1e6,
                     "max |n - n_prev| / (fwidth(n) + 0.01) of a consistent tap")
         .paramBool("geometryTests", true,
@@ -830,6 +854,7 @@ PassDesc ReprojectionPass::describe() {
 
 ReprojectionPass::ReprojectionPass(const ParamValues& p)
     : catmullRom_(p.getString("filter") == "catmullrom"),
+      cameraDepth_(p.getString("depthPrediction") == "camera"),
       // Without the geometry tests every tap passes them: an infinite threshold is passed by
       // any finite distance (and a NaN normal still fails, as with the tests).
       depthThreshold_(p.getBool("geometryTests") ? p.getFloat("depthThreshold") : kNoTest),
@@ -851,6 +876,6 @@ void ReprojectionPass::resolve(ResolveContext& rc) {
 
 void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
     HWY_DYNAMIC_DISPATCH(reproject)
-    (ctx, io, catmullRom_, depthThreshold_, normalThreshold_, depthPrecision_);
+    (ctx, io, catmullRom_, cameraDepth_, depthThreshold_, normalThreshold_, depthPrecision_);
 }
 #endif  // HWY_ONCE

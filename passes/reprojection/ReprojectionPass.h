@@ -16,6 +16,7 @@ public:
 
 private:
     bool catmullRom_;
+    bool cameraDepth_;  ///< predict last frame's depth with the fitted camera model (motion path)
     float depthThreshold_, normalThreshold_;
     float depthPrecision_ = 0.f;  ///< relative step of the stored depth (kDepthPrecisionFact)
 };

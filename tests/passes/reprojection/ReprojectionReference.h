@@ -14,6 +14,8 @@
 #include <map>
 #include <optional>
 
+#include "DepthChangeModel.h"
+
 namespace reprojref {
 
 using namespace kestrel;
@@ -84,6 +86,13 @@ inline Outputs reproject(const Inputs& in, const Params& p) {
         }
     }
     const float dThr = p.depthThreshold, nThr = p.normalThreshold;
+    // Motion vectors only: last frame's depth of a static surface from the fitted camera model.
+    DepthChangeModel depthChange;
+    if (in.motion && std::isfinite(dThr))
+        depthChange = fitDepthChange(
+            {w, h, depth.channel(0), in.motion->channel(0), in.motion->channel(1),
+             useIds ? in.objectId->view().ints() : nullptr, pDepth.channel(0),
+             useIds ? in.prevObjectId->view().ints() : nullptr, dThr, p.depthPrecision});
 
     for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x) {
@@ -93,6 +102,8 @@ inline Outputs reproject(const Inputs& in, const Params& p) {
             if (in.motion) {
                 ppx += in.motion->at(0, x, y);
                 ppy += in.motion->at(1, x, y);
+                if (zRef < kBackgroundDepth)
+                    zRef = depthChange.predict(zRef, x, depthChange.rowTerm(y));
             } else if (matrices) {
                 const int32_t id = in.objectId ? in.objectId->atInt(x, y) : 0;
                 if (zRef >= kBackgroundDepth || (in.objectId && id == kBackgroundId)) {

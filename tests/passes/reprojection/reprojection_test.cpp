@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
 #include <limits>
+#include <map>
+#include <string>
 #include <tuple>
 
 #include "../FactResolve.h"
@@ -175,17 +177,20 @@ TEST(Reprojection, HalfDepthStepsAreNotDisocclusions) {
     Frames f;
     f.depth = constant(W, H, Format::Float, 1000.f);
     f.prevDepth = constant(W, H, Format::Float, 1000.5f);
-    auto plain = make(f, true);
+    // The same depth test with and without the precision slack (no camera model: a uniform
+    // change of depth would fit a camera moving back).
+    const std::map<std::string, ParamValue> noModel{{"depthPrediction", std::string("none")}};
+    auto plain = make(f, true, noModel);
     plain.run();
     EXPECT_EQ(plain.out("historyLength").at(0, 3, 2), 0.f);
-    auto half = make(f, true);
+    auto half = make(f, true, noModel);
     FactResolve facts(kDepthPrecisionFact, "0.0009765625");
     half.pass().resolve(facts);
     half.run();
     EXPECT_NEAR(half.out("historyLength").at(0, 3, 2), 5.f, 1e-5f);
     // The widened test still rejects: beyond depthThreshold (10) times 2 steps (+ 0.01) = 19.6.
     f.prevDepth = constant(W, H, Format::Float, 1020.f);
-    auto far = make(f, true);
+    auto far = make(f, true, noModel);
     far.pass().resolve(facts);
     far.run();
     EXPECT_EQ(far.out("historyLength").at(0, 3, 2), 0.f);
