@@ -100,6 +100,10 @@ __attribute__((always_inline)) inline void derivativesAt(const GeomRows& g, int 
                                                          float* n2) {
     const int xl = L ? x - 1 : x, xr = R ? x + 1 : x;  // an absent side is never used
     const float zc = g.z[0][x];
+    // A background pixel has no slope: it matches only the background. With the slope to its
+    // surface neighbours (1e10 between two of them, a jittered render's isolated sky pixel) it
+    // would pass every tap and take a surface's history into the sky.
+    const bool surface = zc < kBackgroundDepth;
     const float fwZ = std::fabs(px::minAbsDiff(g.z[0][xl], zc, g.z[0][xr], L, R)) +
                       std::fabs(px::minAbsDiff(g.z[1][x], zc, g.z[2][x], U, D));
     float dnx2 = 0, dny2 = 0;
@@ -115,10 +119,10 @@ __attribute__((always_inline)) inline void derivativesAt(const GeomRows& g, int 
     n0[x] = nc[0];
     n1[x] = nc[1];
     n2[x] = nc[2];
-    const float fwN = std::sqrt(dnx2) + std::sqrt(dny2);
+    const float fwN = surface ? std::sqrt(dnx2) + std::sqrt(dny2) : 0.f;
     // Depth stored with relative step r (half: 2^-10) differs from last frame's by up to two
     // steps where nothing moved: the tolerance grows by 2 r z (r = 0 adds exactly nothing).
-    invZ[x] = 1.f / (fwZ + 2.f * g.depthStep * zc + 1e-2f);
+    invZ[x] = 1.f / ((surface ? fwZ : 0.f) + 2.f * g.depthStep * zc + 1e-2f);
     invN[x] = 1.f / (fwN + 1e-2f);
 }
 

@@ -129,6 +129,7 @@ inline Outputs reproject(const Inputs& in, const Params& p) {
             const bool l = x > 0, r = x + 1 < w, u = y > 0, d = y + 1 < h;
             auto zAt = [&](int xx, int yy) { return px::sanitizeDepth(depth.at(0, xx, yy)); };
             const float zc = zAt(x, y);
+            const bool surface = zc < kBackgroundDepth;  // the background has no slope
             const float fwZ =
                 std::fabs(px::minAbsDiff(l ? zAt(x - 1, y) : 0, zc, r ? zAt(x + 1, y) : 0, l, r)) +
                 std::fabs(px::minAbsDiff(u ? zAt(x, y - 1) : 0, zc, d ? zAt(x, y + 1) : 0, u, d));
@@ -143,8 +144,8 @@ inline Outputs reproject(const Inputs& in, const Params& p) {
                 dnx2 += gx * gx;
                 dny2 += gy * gy;
             }
-            const float fwN = std::sqrt(dnx2) + std::sqrt(dny2);
-            const float invZ = 1.f / (fwZ + 2.f * p.depthPrecision * zc + 1e-2f),
+            const float fwN = surface ? std::sqrt(dnx2) + std::sqrt(dny2) : 0.f;
+            const float invZ = 1.f / ((surface ? fwZ : 0.f) + 2.f * p.depthPrecision * zc + 1e-2f),
                         invN = 1.f / (fwN + 1e-2f);
 
             auto consistent = [&](int tx, int ty) {

@@ -196,6 +196,19 @@ TEST(Reprojection, HalfDepthStepsAreNotDisocclusions) {
     EXPECT_EQ(far.out("historyLength").at(0, 3, 2), 0.f);
 }
 
+// A background pixel among surface ones (a jittered render's sample that missed a thin object)
+// has no depth slope: it matches only the background, so it takes no surface history. With the
+// slope to its neighbours (1e10) every tap would pass, and the sky would darken.
+TEST(Reprojection, IsolatedBackgroundPixelTakesNoSurfaceHistory) {
+    Frames f;
+    f.depth.at(0, 3, 2) = 1e10f;
+    for (int c = 0; c < 3; ++c) f.normal.at(c, 3, 2) = 0.f;  // Blender's background normal
+    auto h = make(f, true);
+    h.run();
+    EXPECT_EQ(h.out("historyLength").at(0, 3, 2), 0.f);
+    EXPECT_NEAR(h.out("historyLength").at(0, 4, 2), 5.f, 1e-5f);  // its neighbours keep theirs
+}
+
 // Unknown motion (NaN: the loader's mark for a Blender background without camera.json) is a
 // disocclusion: no history is reused there.
 TEST(Reprojection, UnknownMotionIsADisocclusion) {

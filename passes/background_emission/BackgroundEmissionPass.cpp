@@ -1,0 +1,40 @@
+#include "BackgroundEmissionPass.h"
+
+#include <kestrel/PixelMath.h>
+
+using namespace kestrel;
+
+PassDesc BackgroundEmissionPass::describe() {
+    PassDesc d("BackgroundEmission",
+               "emission = color where the depth is the background (no surface: the environment "
+               "seen directly, exact at 1 spp), else the emission input (0 when not fed). Feeds "
+               "a chain that subtracts its emission before filtering and adds it back after, so "
+               "the background comes out as it went in.");
+    d.input("color", Format::Float3, "the frame's colour")
+        .input("depth", Format::Float, "linear depth; the background at or beyond 1e10 (or NaN)")
+        .optionalInput("emission", Format::Float3, "the render's own emission, if any")
+        .output("emission", Format::Float3, "the emission with the background joined to it")
+        .inPlaceOf("emission");  // pointwise: reads a pixel before writing it
+    return d;
+}
+
+void BackgroundEmissionPass::execute(FrameContext& ctx, PassIO& io) {
+    const ImageView &color = io.input("color"), &depth = io.input("depth"),
+                    &out = io.output("emission");
+    const ImageView* emission = io.hasInput("emission") ? &io.input("emission") : nullptr;
+    const int w = ctx.extent.width;
+    ctx.parallelRows(ctx.extent.height, [&](int y0, int y1) {
+        for (int y = y0; y < y1; ++y) {
+            const float* z = depth.row(0, y);
+            for (int c = 0; c < 3; ++c) {
+                const float *col = color.row(c, y), *e = emission ? emission->row(c, y) : nullptr;
+                float* o = out.row(c, y);
+                for (int x = 0; x < w; ++x) {
+                    const bool background = px::sanitizeDepth(z[x]) >= kBackgroundDepth;
+                    const float own = e ? px::sanitize(e[x]) : 0.f;
+                    o[x] = background ? px::sanitize(col[x]) : own;
+                }
+            }
+        }
+    });
+}

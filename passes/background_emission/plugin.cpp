@@ -1,0 +1,7 @@
+#include <kestrel/Plugin.h>
+
+#include "BackgroundEmissionPass.h"
+
+KESTREL_PLUGIN(r) {
+    r.add<BackgroundEmissionPass>();
+}
