@@ -6,10 +6,10 @@ using namespace kestrel;
 
 PassDesc BackgroundEmissionPass::describe() {
     PassDesc d("BackgroundEmission",
-               "emission = color where the depth is the background (no surface: the environment "
-               "seen directly, exact at 1 spp), else the emission input (0 when not fed). Feeds "
-               "a chain that subtracts its emission before filtering and adds it back after, so "
-               "the background comes out as it went in.");
+               "Joins the background to the emission: emission = color where the depth is the "
+               "background (no surface: the environment seen directly, exact at 1 spp), else the "
+               "emission input (0 when not fed). Feeds a chain that subtracts its emission before "
+               "filtering and adds it back after, so the background comes out as it went in.");
     d.input("color", Format::Float3, "the frame's colour")
         .input("depth", Format::Float, "linear depth; the background at or beyond 1e10 (or NaN)")
         .optionalInput("emission", Format::Float3, "the render's own emission, if any")
