@@ -224,8 +224,8 @@ TEST(ShippedGroups, BitIdenticalOnBlenderSequences) {
 }
 
 /// The flat svgf-notaa.json with A-Trous iterations `keep` and beyond cut out of every chain, the
-/// last kept iteration feeding what the cut ones fed: the chain the iterations parameter asks for,
-/// written out by hand.
+/// last kept iteration feeding what the cut ones fed, and the colour history resampled bilinearly:
+/// the chains svgf-fast.json's parameters ask for, written out by hand.
 fs::path flatWithIterations(int keep) {
     json g = json::parse(std::ifstream(flat("svgf.json")));
     const std::regex iteration(R"(^(\w+)_atrous(\d)$)");
@@ -235,8 +235,13 @@ fs::path flatWithIterations(int keep) {
     };
     auto passOf = [](const std::string& port) { return port.substr(0, port.find('.')); };
     json passes = json::array();
-    for (const json& p : g["passes"])
-        if (!cut(p["name"])) passes.push_back(p);
+    const std::regex reprojection(R"(^\w+_reprojection$)");
+    for (json p : g["passes"]) {
+        if (cut(p["name"])) continue;
+        if (std::regex_match(p["name"].get<std::string>(), reprojection))
+            p["params"]["filter"] = "bilinear";
+        passes.push_back(p);
+    }
     g["passes"] = passes;
     json edges = json::array();
     for (json e : g["edges"]) {
