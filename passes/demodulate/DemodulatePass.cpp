@@ -6,6 +6,8 @@
 
 #include <kestrel/PixelMath.h>
 
+#include <algorithm>
+
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "DemodulatePass.cpp"
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
@@ -15,18 +17,26 @@ HWY_BEFORE_NAMESPACE();
 namespace kestrel::HWY_NAMESPACE {
 namespace {
 
-// One channel of one row: (colour - emission) / albedo, sanitised. A, E: albedo, emission fed
-// (compile-time, so the loop is branch-free and vectorises).
+// One channel of one row: (colour - emission) / albedo, sanitised, and the albedo Modulate
+// multiplies back by (px::modulationAlbedo) into aOut when it is not null. A, E: albedo,
+// emission fed (compile-time, so the loop is branch-free and vectorises).
 template <bool A, bool E>
-void demodulateRow(int w, const float* src, const float* __restrict a, const float* __restrict e,
-                   float* dst, float floor) {
-    // dst may be src (in place): each pixel is read before it is written, so no iteration
-    // depends on another.
+void demodulateRow(int w, const float* src, const float* a, const float* __restrict e, float* dst,
+                   float* aOut, float floor, bool guard) {
+    // dst may be src and aOut may be a (in place): each pixel is read before it is written, so
+    // no iteration depends on another.
 #pragma GCC ivdep
     for (int x = 0; x < w; ++x) {
         float v = px::sanitize(src[x]);
         if constexpr (E) v -= px::sanitize(e[x]);
-        if constexpr (A) v /= px::demodulationAlbedo(a[x], floor);
+        if constexpr (A) {
+            const bool divided = a[x] >= floor && a[x] <= 1e30f;  // as demodulationAlbedo
+            const float m =
+                guard ? px::modulationAlbedo(a[x], v, floor) : px::demodulationAlbedo(a[x], floor);
+            // Below the floor the light goes through undivided; a pixel without light has none.
+            v = divided ? v / m : (guard ? std::max(v, 0.f) : v);
+            if (aOut) aOut[x] = m;
+        }
         dst[x] = px::sanitize(v);
     }
 }
@@ -37,6 +47,10 @@ void executeOnTarget(FrameContext& ctx, PassIO& io, float albedoFloor_) {
     const ImageView* albedo = io.hasInput("albedo") ? &io.input("albedo") : nullptr;
     const ImageView* emission = io.hasInput("emission") ? &io.input("emission") : nullptr;
     const ImageView& out = io.output("illumination");
+    const ImageView* albedoOut = albedo && io.hasOutput("albedo") ? &io.output("albedo") : nullptr;
+    // With object ids the filters keep an emitter apart from the lit objects around it: the
+    // albedo Modulate multiplies by is demodulationAlbedo's (see the albedo output).
+    const bool guard = !io.hasInput("objectId");
     // A zero floor would divide by zero on black albedo: keep the divisor a normal float.
     const float floor = std::max(albedoFloor_, 1e-8f);
     const int w = ctx.extent.width;
@@ -46,7 +60,8 @@ void executeOnTarget(FrameContext& ctx, PassIO& io, float albedoFloor_) {
         for (int y = y0; y < y1; ++y)
             for (int c = 0; c < 3; ++c)
                 row(w, color.row(c, y), albedo ? albedo->row(c, y) : nullptr,
-                    emission ? emission->row(c, y) : nullptr, out.row(c, y), floor);
+                    emission ? emission->row(c, y) : nullptr, out.row(c, y),
+                    albedoOut ? albedoOut->row(c, y) : nullptr, floor, guard);
     });
 }
 
@@ -73,6 +88,17 @@ PassDesc DemodulatePass::describe() {
         .optionalInput("emission", Format::Float3, "emitted radiance to subtract first")
         .output("illumination", Format::Float3, "demodulated illumination (finite)")
         .inPlaceOf("color")
+        .optionalInput("objectId", Format::Int32,
+                       "object ids, when the render has them (not read: with them the filters "
+                       "keep an emitter apart from the lit objects around it)")
+        .output("albedo", Format::Float3,
+                "the albedo to multiply back by (Modulate's albedo): the input albedo, 1 below "
+                "albedoFloor (not demodulated). Without object ids, below the floor it is 1 "
+                "only where the pixel has light of its own in this colour and the floor where "
+                "it has none (the light is then 0), so what the filters spread into a black "
+                "pixel (an emitter's) from the lit surface around it comes back scaled by the "
+                "floor. Absent without an albedo")
+        .inPlaceOf("albedo")
         .paramFloat("albedoFloor", 1e-3, 0.0, 1.0,
                     "lower bound of the albedo divisor (dark albedo would amplify noise)");
     return d;
@@ -81,6 +107,7 @@ PassDesc DemodulatePass::describe() {
 DemodulatePass::DemodulatePass(const ParamValues& p) : albedoFloor_(p.getFloat("albedoFloor")) {}
 
 void DemodulatePass::resolve(ResolveContext& rc) {
+    if (!rc.isBound("albedo")) rc.setAbsent("albedo", "no albedo is bound");
     if (!rc.isBound("albedo") && !rc.isBound("emission")) {
         rc.forward("illumination", "color");
         rc.note("no albedo and no emission bound: illumination is the colour itself");

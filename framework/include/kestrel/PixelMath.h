@@ -44,6 +44,16 @@ inline float demodulationAlbedo(float albedo, float floor) {
     return albedo >= floor && albedo <= 1e30f ? albedo : 1.f;
 }
 
+/// The albedo Modulate multiplies back by, given the channel's light (colour - emission) at the
+/// pixel: the albedo demodulationAlbedo divides by, except that below the floor it is 1 only
+/// where the pixel has light of its own (not demodulated: it goes through the filters as it
+/// is), and the floor where it has none. A black pixel then gets back what the filters spread
+/// into it from lit neighbours scaled by the floor instead of whole (an emitter's pixels: its
+/// diffuse albedo is 0; objects without ids are not kept apart). NaN/Inf albedo: as below.
+inline float modulationAlbedo(float albedo, float light, float floor) {
+    return albedo >= floor && albedo <= 1e30f ? albedo : (light > 0.f ? 1.f : floor);
+}
+
 /// Linear depth: NaN, Inf, negative or beyond background become the background depth.
 inline float sanitizeDepth(float z) {
     return z >= 0.f && z < kBackgroundDepth ? z : kBackgroundDepth;

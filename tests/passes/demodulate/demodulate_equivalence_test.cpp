@@ -32,7 +32,9 @@ void expectEquivalent(int w, int h, unsigned seed, float extremes) {
     const Image color = modtest::randomImage(w, h, seed, 4.f, extremes);
     const Image albedo = modtest::randomImage(w, h, seed + 1, 1.f, extremes);
     const Image emission = modtest::randomImage(w, h, seed + 2, 0.5f, extremes);
-    for (int bound = 1; bound < 4; ++bound)  // albedo and/or emission (neither: forwarded)
+    Image ids(w, h, Format::Int32);
+    for (int bound = 1; bound < 8; ++bound) {  // albedo and/or emission (neither: forwarded), ids
+        if ((bound & 3) == 0) continue;
         for (double floor : {0.0, 1e-3, 1.0})
             for (int threads : {1, 2, 3}) {
                 SCOPED_TRACE(std::to_string(w) + "x" + std::to_string(h) + " extremes " +
@@ -44,12 +46,17 @@ void expectEquivalent(int w, int h, unsigned seed, float extremes) {
                 hr.bind("color", color);
                 if (bound & 1) hr.bind("albedo", albedo);
                 if (bound & 2) hr.bind("emission", emission);
+                if (bound & 4) hr.bind("objectId", ids);
                 hr.run();
-                const Image ref =
-                    demodref::demodulate(color, bound & 1 ? &albedo : nullptr,
-                                         bound & 2 ? &emission : nullptr, float(floor));
-                EXPECT_TRUE(sameBits(hr.out("illumination"), ref));
+                const demodref::Outputs ref = demodref::demodulate(
+                    color, bound & 1 ? &albedo : nullptr, bound & 2 ? &emission : nullptr,
+                    float(floor), (bound & 4) != 0);
+                EXPECT_TRUE(sameBits(hr.out("illumination"), ref.illumination));
+                if (bound & 1) {
+                    EXPECT_TRUE(sameBits(hr.out("albedo"), ref.albedo));
+                }
             }
+    }
 }
 
 }  // namespace

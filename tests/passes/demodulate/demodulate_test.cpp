@@ -28,7 +28,7 @@ TEST(Demodulate, DividesEmissionFreeColourByAlbedoAndLeavesBlackAlbedoAlone) {
     h.bind("albedo", albedo);
     h.bind("emission", emission);
     h.run();
-    EXPECT_FLOAT_EQ(h.out("illumination").at(0, 0, 0), 1.5f);  // (1 - 0.25) / 0.5
+    EXPECT_FLOAT_EQ(h.out("illumination").at(0, 0, 0), 1.5f);   // (1 - 0.25) / 0.5
     EXPECT_FLOAT_EQ(h.out("illumination").at(1, 1, 0), 0.75f);  // (1 - 0.25) / 1
 }
 
