@@ -32,6 +32,32 @@ TEST(Demodulate, DividesEmissionFreeColourByAlbedoAndLeavesBlackAlbedoAlone) {
     EXPECT_FLOAT_EQ(h.out("illumination").at(1, 1, 0), 0.75f);  // (1 - 0.25) / 1
 }
 
+// Black albedo without object ids: an emitter's pixel (no light of its own in the colour) gets
+// the floor as the albedo Modulate multiplies back by, so what the filters spread into it from
+// lit neighbours comes back 1000x smaller; a lit pixel with black albedo (a mirror demodulated by
+// a diffuse albedo) keeps 1 and its light. With ids the albedo is 1 for both, as before.
+TEST(Demodulate, BlackAlbedoWithoutLightTakesBackOnlyTheFloorWithoutIds) {
+    Image color = constant(3, 1, Format::Float3, 0.f), albedo = constant(3, 1, Format::Float3, 0.f);
+    Image ids(3, 1, Format::Int32);
+    albedo.at(0, 2, 0) = 0.5f;
+    color.at(0, 1, 0) = 0.5f;  // the mirror
+    color.at(0, 2, 0) = 0.5f;
+    for (bool withIds : {false, true}) {
+        SCOPED_TRACE(withIds ? "with ids" : "without ids");
+        auto h = PassHarness::make<DemodulatePass>({3, 1}, {{"albedoFloor", 0.001}});
+        h.bind("color", color);
+        h.bind("albedo", albedo);
+        if (withIds) h.bind("objectId", ids);
+        h.run();
+        EXPECT_FLOAT_EQ(h.out("albedo").at(0, 0, 0), withIds ? 1.f : 0.001f);  // the emitter
+        EXPECT_EQ(h.out("illumination").at(0, 0, 0), 0.f);
+        EXPECT_FLOAT_EQ(h.out("albedo").at(0, 1, 0), 1.f);  // the mirror keeps its light
+        EXPECT_FLOAT_EQ(h.out("illumination").at(0, 1, 0), 0.5f);
+        EXPECT_FLOAT_EQ(h.out("albedo").at(0, 2, 0), 0.5f);  // above the floor: the albedo
+        EXPECT_FLOAT_EQ(h.out("illumination").at(0, 2, 0), 1.f);
+    }
+}
+
 TEST(Demodulate, ThenModulateIsIdentityWhereAlbedoAboveFloor) {
     const int w = 13, h = 7;
     Image color = colorRamp(w, h, 0), albedo = colorRamp(w, h, 10), emission = colorRamp(w, h, 20);
