@@ -139,15 +139,15 @@ DepthChangeModel fitDepthChange(const DepthChangeInputs& in) {
         if (kept < kMinSamples || changed == 0) break;
     }
     if (passing(p) <= passing(identity)) return model;
-    // The float model must be finite and within what a camera can do in a frame.
-    const float a = float(p[0]), b = float(p[1]), c = float(1.0 + p[2]), d = float(p[3]);
-    if (!(std::fabs(a) < 1e3f && std::fabs(b) < 1e3f && c > 1e-3f && c < 1e3f &&
-          std::fabs(d) < kBackgroundDepth))
+    // Within what a camera can do in a frame, checked in double before the conversion to float
+    // (a value beyond float's range would not convert).
+    if (!(std::fabs(p[0]) < 1e3 && std::fabs(p[1]) < 1e3 && 1.0 + p[2] > 1e-3 && 1.0 + p[2] < 1e3 &&
+          std::fabs(p[3]) < double(kBackgroundDepth)))
         return model;
-    model.a = a;
-    model.b = b;
-    model.c = c;
-    model.d = d;
+    model.a = float(p[0]);
+    model.b = float(p[1]);
+    model.c = float(1.0 + p[2]);
+    model.d = float(p[3]);
     return model;
 }
 
