@@ -2,6 +2,9 @@
 
 #include <kestrel/PixelMath.h>
 
+#include <cstdint>
+#include <vector>
+
 using namespace kestrel;
 
 PassDesc BackgroundEmissionPass::describe() {
@@ -24,16 +27,17 @@ void BackgroundEmissionPass::execute(FrameContext& ctx, PassIO& io) {
     const ImageView* emission = io.hasInput("emission") ? &io.input("emission") : nullptr;
     const int w = ctx.extent.width;
     ctx.parallelRows(ctx.extent.height, [&](int y0, int y1) {
+        std::vector<uint8_t> background(static_cast<size_t>(w));  // one test per pixel, not per channel
         for (int y = y0; y < y1; ++y) {
             const float* z = depth.row(0, y);
+            for (int x = 0; x < w; ++x)
+                background[size_t(x)] = px::sanitizeDepth(z[x]) >= kBackgroundDepth;
             for (int c = 0; c < 3; ++c) {
                 const float *col = color.row(c, y), *e = emission ? emission->row(c, y) : nullptr;
                 float* o = out.row(c, y);
-                for (int x = 0; x < w; ++x) {
-                    const bool background = px::sanitizeDepth(z[x]) >= kBackgroundDepth;
-                    const float own = e ? px::sanitize(e[x]) : 0.f;
-                    o[x] = background ? px::sanitize(col[x]) : own;
-                }
+                for (int x = 0; x < w; ++x)
+                    o[x] = background[size_t(x)] ? px::sanitize(col[x])
+                                                 : (e ? px::sanitize(e[x]) : 0.f);
             }
         }
     });
