@@ -556,7 +556,8 @@ private:
     /// The fusion key of executed node v: its type, fusionKey() and where its fuseOn inputs
     /// come from; empty where it cannot fuse.
     /// ... and which of its outputs are consumed (`consumed`: node, output port), so that the
-    /// members of a step produce the same outputs.
+    /// members of a step produce the same outputs, unless the type fuses members whose outputs
+    /// differ (FusedOutputs::MayDiffer).
     std::string fusionKeyOf(int v, const std::set<std::pair<int, int>>& consumed) {
         const PassDesc& d = descOf(v);
         if (d.fusedInputs.empty()) return {};
@@ -569,6 +570,7 @@ private:
             const auto src = sourceOf(v, p);
             key += src ? "|" + portName(*src) + (edge(e).history ? "@prev" : "") : "|-";
         }
+        if (d.fusedOutputsMayDiffer) return key;
         key += "|out:";
         for (size_t p = 0; p < d.ports.size(); ++p)
             if (d.ports[p].kind == PortKind::Output) key += consumed.count({v, int(p)}) ? '1' : '0';

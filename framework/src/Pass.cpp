@@ -48,7 +48,7 @@ PassDesc& PassDesc::inPlaceOf(std::string input) {
     return *this;
 }
 
-PassDesc& PassDesc::fuseOn(std::vector<std::string> inputs) {
+PassDesc& PassDesc::fuseOn(std::vector<std::string> inputs, FusedOutputs outputs) {
     for (const auto& name : inputs) {
         const PortDesc* in = findPort(name);
         if (!in || in->kind != PortKind::Input)
@@ -56,6 +56,7 @@ PassDesc& PassDesc::fuseOn(std::vector<std::string> inputs) {
                         "') must name an input declared before it");
     }
     fusedInputs = std::move(inputs);
+    fusedOutputsMayDiffer = outputs == FusedOutputs::MayDiffer;
     return *this;
 }
 

@@ -457,7 +457,7 @@ void filterFast(FrameContext& ctx, const Bindings* const* b, int signals,
     const int width = ctx.extent.width, height = ctx.extent.height;
     const ImageView &depth = b[0]->depth, &normal = b[0]->normal;
     const int32_t* ids = b[0]->ids;
-    const bool withVar = b[0]->outVar != nullptr;
+    const bool withVar = std::any_of(b, b + signals, [](const Bindings* g) { return g->outVar; });
     const bool checkVar = b[0]->var != nullptr;
     // The image is filtered in bands of rows, each with private scratch planes covering the
     // band and the rows its taps reach (2 step above and below): scratch then scales with the
@@ -676,7 +676,7 @@ PassDesc ATrousPass::describe() {
         .optionalInput("objectId", Format::Int32, "object id: taps on another object get weight 0")
         .output("color", Format::Float3, "filtered illumination")
         .output("variance", Format::Float, "propagated variance (absent without variance input)")
-        .fuseOn({"depth", "normal", "objectId"})
+        .fuseOn({"depth", "normal", "objectId"}, PassDesc::FusedOutputs::MayDiffer)
         .paramInt("step", 1, 1, 1024, "tap spacing in pixels (2^iteration)")
         .paramFloat("sigmaZ", 1.0, 0.0, 1e6, "depth weight: tolerance in units of the depth slope")
         .paramFloat("sigmaN", 128.0, 0.0, 1e4, "normal weight exponent on max(0, n_p . n_q)")
@@ -730,12 +730,14 @@ std::string ATrousPass::fusionKey() const {
 }
 
 namespace {
-/// Whether two passes' bindings can be filtered as one pair: the same geometry images and the
-/// same variance ports (the kernel's variants are per pair).
+/// Whether two passes' bindings can be filtered as one pair: the same geometry images and both
+/// with or both without a variance input (the kernel's variants are per pair). Their variance
+/// outputs may differ: the pair then filters both variances and stores the one that is bound
+/// (the specular chain's last iteration, whose variance nobody reads, pairs with the diffuse
+/// chain's third).
 bool pairable(const Bindings& a, const Bindings& b) {
     return a.depth.planes == b.depth.planes && a.normal.planes == b.normal.planes &&
-           a.ids == b.ids && (a.var == nullptr) == (b.var == nullptr) &&
-           (a.outVar == nullptr) == (b.outVar == nullptr);
+           a.ids == b.ids && (a.var == nullptr) == (b.var == nullptr);
 }
 }  // namespace
 

@@ -44,6 +44,8 @@ struct PassDesc {
     bool sink = false;  ///< writes outside the graph (files): always live, never pruned
     /// Inputs that passes of this type must share to run fused (see fuseOn).
     std::vector<std::string> fusedInputs;
+    /// Whether fused members may differ in which outputs something consumes (see fuseOn).
+    bool fusedOutputsMayDiffer = false;
 
     PassDesc(std::string type_, std::string description_)
         : type(std::move(type_)), description(std::move(description_)) {}
@@ -63,7 +65,11 @@ struct PassDesc {
     PassDesc& inPlaceOf(std::string input);
     /// Passes of this type may run fused (Pass::executeFused) when these inputs of each come
     /// from the same outputs (or are all unbound): the work on them is then done once.
-    PassDesc& fuseOn(std::vector<std::string> inputs);
+    /// FusedOutputs::Same (the default) fuses only members whose consumed outputs are the same;
+    /// MayDiffer also fuses members that leave different outputs unconsumed (absent in their
+    /// PassIO), which executeFused then handles.
+    enum class FusedOutputs { Same, MayDiffer };
+    PassDesc& fuseOn(std::vector<std::string> inputs, FusedOutputs outputs = FusedOutputs::Same);
 
     PassDesc& paramFloat(std::string name, double def, double min, double max, std::string desc);
     PassDesc& paramInt(std::string name, int64_t def, int64_t min, int64_t max, std::string desc);

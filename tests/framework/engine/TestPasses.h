@@ -403,6 +403,18 @@ private:
     bool fail_;
 };
 
+/// Guided, fused also where members leave different outputs unconsumed (its filter writes `aux`
+/// only where it is bound).
+class GuidedAnyOutputsPass : public GuidedPass {
+public:
+    static PassDesc describe() {
+        PassDesc d = GuidedPass::describe();
+        d.type = "GuidedAnyOutputs";
+        return d.fuseOn({"guide"}, PassDesc::FusedOutputs::MayDiffer);
+    }
+    using GuidedPass::GuidedPass;
+};
+
 inline Registry testRegistry() {
     Registry r;
     r.add<ConstPass>();
@@ -424,6 +436,7 @@ inline Registry testRegistry() {
     r.add<RowWorkPass>();
     r.add<ScribbleIdlePass>();
     r.add<GuidedPass>();
+    r.add<GuidedAnyOutputsPass>();
     return r;
 }
 

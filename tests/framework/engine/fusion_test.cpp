@@ -149,6 +149,23 @@ TEST(Fusion, PassesWithDifferentConsumedOutputsAreNotFused) {
     EXPECT_TRUE(g->report().fused.empty());
 }
 
+// A type that handles absent outputs in executeFused fuses them anyway, with the same results.
+TEST(Fusion, ATypeThatAllowsItFusesPassesWithDifferentConsumedOutputs) {
+    Registry r = testRegistry();
+    // q's aux is marked, p's is not: Guided would not fuse them (the test above).
+    const char* text = R"({"kestrel": 1, "passes": [
+        {"name": "ramp", "type": "Ramp"},
+        {"name": "p", "type": "GuidedAnyOutputs", "params": {"key": 1}},
+        {"name": "q", "type": "GuidedAnyOutputs", "params": {"key": 1}}, {"name": "sum", "type": "Sum"}],
+      "edges": [{"from": "ramp.out", "to": ["p.in", "q.in", "p.guide", "q.guide"]},
+        {"from": "p.out", "to": "sum.a"}, {"from": "q.out", "to": "sum.b"}],
+      "outputs": ["sum.out", "q.aux"]})";
+    auto g = compileText(text, r);
+    ASSERT_EQ(g->report().fused.size(), 1u);
+    EXPECT_EQ(g->report().fused[0], (std::vector<std::string>{"p", "q"}));
+    expectSameResultAsUnfused(*g, text, r, 1);
+}
+
 // A failure in a fused step names every pass of it: any of them may have failed.
 TEST(Fusion, AFailingFusedStepNamesItsPasses) {
     Registry r = testRegistry();
