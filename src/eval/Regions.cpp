@@ -194,10 +194,10 @@ GBuffer GBufferReader::read(int64_t frame) {
     return g;
 }
 
-void RegionStats::add(const ImageView& out, const ImageView& ref, const ImageView& input,
-                      const RegionMasks& masks, ToneMap t) {
-    const Image o = toneMapped(sanitizedRgb(out).view(), t);
-    const Image r = toneMapped(sanitizedRgb(ref).view(), t);
+DisplayFrame RegionStats::add(const ImageView& out, const ImageView& ref, const ImageView& input,
+                              const RegionMasks& masks, ToneMap t, const DisplayFrame* previous) {
+    Image o = toneMapped(sanitizedRgb(out).view(), t);
+    Image r = toneMapped(sanitizedRgb(ref).view(), t);
     const Image in = toneMapped(sanitizedRgb(input).view(), t);
     const size_t n = out.pixels();
     if (ref.pixels() != n || input.pixels() != n || masks[kAll].size() != n)
@@ -218,6 +218,21 @@ void RegionStats::add(const ImageView& out, const ImageView& ref, const ImageVie
         }
     }
     for (int k = 0; k < kRegionCount; ++k) framesWith[size_t(k)] += seen[size_t(k)];
+    if (previous && previous->out.view().pixels() == n && previous->ref.view().pixels() == n)
+        for (int c = 0; c < 3; ++c) {
+            const float *po = o.view().channel(c), *pr = r.view().channel(c),
+                        *qo = previous->out.view().channel(c),
+                        *qr = previous->ref.view().channel(c);
+            for (size_t i = 0; i < n; ++i) {
+                const double e = std::fabs((double(po[i]) - qo[i]) - (double(pr[i]) - qr[i]));
+                for (int k = 0; k < kRegionCount; ++k)
+                    if (masks[size_t(k)][i]) {
+                        temporalSum[size_t(k)] += e;
+                        ++temporalSamples[size_t(k)];
+                    }
+            }
+        }
+    return {std::move(o), std::move(r)};
 }
 
 namespace {
@@ -239,6 +254,10 @@ double RegionStats::ratio(int k) const {
     return std::max(outSse[size_t(k)] / n, 1e-10) / std::max(inSse[size_t(k)] / n, 1e-10);
 }
 
+double RegionStats::temporal(int k) const {
+    return temporalSum[size_t(k)] / double(std::max<uint64_t>(temporalSamples[size_t(k)], 1));
+}
+
 bool RegionStats::worseThanInput(int k) const {
     const double n = double(std::max<uint64_t>(samples[size_t(k)], 1));
     return outSse[size_t(k)] / n > inSse[size_t(k)] / n + kMseSlack;
@@ -251,6 +270,7 @@ RegionStats compareRegions(const Registry& registry, const std::string& outPatte
     GBufferReader reader(registry, inputPattern, frames.front());
     RegionStats stats;
     GBuffer prev;
+    DisplayFrame prevDisplay;
     bool havePrev = false;
     int64_t last = 0;
     for (int64_t f : frames) {
@@ -260,7 +280,8 @@ RegionStats compareRegions(const Registry& registry, const std::string& outPatte
         RegionMasks masks = classifyRegions(g, consecutive ? &prev : nullptr);
         const Image out = readExrRgb(expandFramePattern(outPattern, f));
         const Image ref = readExrRgb(expandFramePattern(refPattern, f));
-        stats.add(out.view(), ref.view(), g.color.view(), masks, toneMap);
+        prevDisplay = stats.add(out.view(), ref.view(), g.color.view(), masks, toneMap,
+                                consecutive ? &prevDisplay : nullptr);
         prev = std::move(g);
         havePrev = true;
         last = f;
@@ -269,14 +290,19 @@ RegionStats compareRegions(const Registry& registry, const std::string& outPatte
 }
 
 std::string formatRegionTable(const RegionStats& s) {
-    std::string t = "region         share   input dB  output dB   out/in MSE\n";
+    std::string t = "region         share   input dB  output dB   out/in MSE   temporal\n";
     const double all = double(std::max<uint64_t>(s.samples[kAll], 1));
-    char line[160];
+    char line[160], temporal[32];
     for (int k = 0; k < kRegionCount; ++k) {
         if (!s.has(k)) continue;
-        std::snprintf(line, sizeof line, "%-12s %6.1f%%  %9.2f  %9.2f   %10.3f%s\n", regionName(k),
-                      100.0 * double(s.samples[size_t(k)]) / all, s.inPsnr(k), s.outPsnr(k),
-                      s.ratio(k), s.worseThanInput(k) ? "  worse than the input" : "");
+        if (s.hasTemporal(k))
+            std::snprintf(temporal, sizeof temporal, "%10.5f", s.temporal(k));
+        else
+            std::snprintf(temporal, sizeof temporal, "%10s", "-");
+        std::snprintf(line, sizeof line, "%-12s %6.1f%%  %9.2f  %9.2f   %10.3f %s%s\n",
+                      regionName(k), 100.0 * double(s.samples[size_t(k)]) / all, s.inPsnr(k),
+                      s.outPsnr(k), s.ratio(k), temporal,
+                      s.worseThanInput(k) ? "  worse than the input" : "");
         t += line;
     }
     return t;
@@ -293,6 +319,7 @@ nlohmann::json regionsToJson(const RegionStats& s) {
                             {"mseRatio", s.ratio(k)},
                             {"worseThanInput", s.worseThanInput(k)},
                             {"frames", s.framesWith[size_t(k)]}};
+        if (s.hasTemporal(k)) j[regionName(k)]["temporal"] = s.temporal(k);
     }
     return j;
 }

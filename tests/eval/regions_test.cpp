@@ -115,3 +115,33 @@ TEST(Regions, RoundingIsNotWorseThanTheInput) {
     t.add(out.view(), ref.view(), in.view(), m);
     EXPECT_TRUE(t.worseThanInput(kAll));
 }
+
+// Temporal instability per region: a pixel whose output changes while the reference does not
+// counts in its own region only; a change the reference makes too counts nowhere.
+TEST(Regions, TemporalInstabilityIsMeasuredPerRegion) {
+    GBuffer g = surface();
+    g.depth[at(0, 0)] = kBackgroundDepth;
+    const RegionMasks m = classifyRegions(g, nullptr);
+    Image ref(W, H, Format::Float3), in(W, H, Format::Float3), out(W, H, Format::Float3);
+    ref.fill(1.f);
+    in.fill(1.f);
+    out.fill(1.f);
+    RegionStats s;
+    const DisplayFrame first = s.add(out.view(), ref.view(), in.view(), m);
+    EXPECT_FALSE(s.hasTemporal(kAll));                          // no frame before the first
+    for (int c = 0; c < 3; ++c) out.at(c, 3, 1) = 3.f;          // one surface pixel brightens
+    ref.fill(3.f);                                              // as the reference does everywhere,
+    out.at(0, 0, 0) = out.at(1, 0, 0) = out.at(2, 0, 0) = 3.f;  // and the sky
+    const DisplayFrame second =
+        s.add(out.view(), ref.view(), in.view(), m, ToneMap::Reinhard, &first);
+    ASSERT_TRUE(s.hasTemporal(kAll));
+    EXPECT_EQ(s.temporalSamples[kBackground], 3u);
+    EXPECT_DOUBLE_EQ(s.temporal(kBackground), 0.0);
+    // 31 surface pixels: one changes as the reference does, 30 stay (each off by the change).
+    const double change = toneMap(ToneMap::Reinhard, 3.f) - toneMap(ToneMap::Reinhard, 1.f);
+    EXPECT_NEAR(s.temporal(kAll), 30.0 * change / 32.0, 1e-6);
+    EXPECT_GT(s.temporal(kAll), s.temporal(kBackground));
+    EXPECT_EQ(second.out.view().pixels(), size_t(W) * H);
+    EXPECT_NEAR(regionsToJson(s)["all"]["temporal"].get<double>(), s.temporal(kAll), 1e-12);
+    EXPECT_NE(formatRegionTable(s).find("temporal"), std::string::npos);
+}

@@ -58,16 +58,31 @@ private:
     std::unique_ptr<Impl> impl_;
 };
 
-/// Sums of squared display-value errors per region, over frames.
+/// One frame's display values (tone-mapped output and reference), kept for the next frame's
+/// temporal term.
+struct DisplayFrame {
+    Image out, ref;
+};
+
+/// Sums of squared display-value errors per region, over frames, and of the output's temporal
+/// instability (Metrics.h: |(o_t - o_t-1) - (r_t - r_t-1)|) over the region's pixels in frame t.
 struct RegionStats {
     std::array<double, kRegionCount> outSse{}, inSse{};
     std::array<uint64_t, kRegionCount> samples{};  ///< pixel-channels
     std::array<uint64_t, kRegionCount> framesWith{};
+    std::array<double, kRegionCount> temporalSum{};
+    std::array<uint64_t, kRegionCount> temporalSamples{};  ///< pixel-channels
 
-    /// Adds one frame: output, reference and input are linear RGB, tone-mapped here.
-    void add(const ImageView& out, const ImageView& ref, const ImageView& input,
-             const RegionMasks& masks, ToneMap toneMap = ToneMap::Reinhard);
+    /// Adds one frame: output, reference and input are linear RGB, tone-mapped here. With
+    /// `previous` (the frame before's display values) the temporal terms too. Returns this
+    /// frame's display values.
+    DisplayFrame add(const ImageView& out, const ImageView& ref, const ImageView& input,
+                     const RegionMasks& masks, ToneMap toneMap = ToneMap::Reinhard,
+                     const DisplayFrame* previous = nullptr);
     bool has(int region) const { return samples[size_t(region)] > 0; }
+    bool hasTemporal(int region) const { return temporalSamples[size_t(region)] > 0; }
+    /// Mean temporal instability of the output over the region (which pixels flicker).
+    double temporal(int region) const;
     double outPsnr(int region) const;
     double inPsnr(int region) const;
     /// Output MSE over input MSE (< 1: the filter helped there).
