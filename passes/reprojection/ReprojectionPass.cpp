@@ -156,6 +156,21 @@ void rowDerivatives(const GeomRows& g, bool u, bool d, int w, int a, int b, floa
         rowDerivativesT<false, false>(g, w, a, b, invZ, invN, n0, n1, n2);
 }
 
+// The taps mask (output `taps`, input `sharedTaps`): which taps passed the consistency tests,
+// so that a second reprojection over the same geometry and motion (the specular chain's) reuses
+// them instead of testing again. Bits 0-15: the 4x4 Catmull-Rom footprint, tap (x0 + k, y0 + j)
+// for k, j in -1..2 at bit (j + 1) 4 + k + 1 (the bilinear 2x2 are bits 5, 6, 9 and 10); bits
+// 16-24: the 3x3 fallback, tap (cx + k, cy + j) for k, j in -1..1 at 16 + (j + 1) 3 + k + 1;
+// kOuterTested: the outer 12 taps were tested (Catmull-Rom) where the inner four passed. Taps
+// never tested are 0.
+constexpr int tapBit(int k, int j) {
+    return (j + 1) * 4 + k + 1;
+}
+constexpr int fallbackBit(int k, int j) {
+    return 16 + (j + 1) * 3 + k + 1;
+}
+constexpr int32_t kOuterTested = int32_t(1) << 25;
+
 // Every plane the taps read, and the parameters of the consistency test.
 struct Sources {
     int w = 0, h = 0;
@@ -164,7 +179,8 @@ struct Sources {
     const float *pc[3] = {}, *pm[2] = {}, *ph = nullptr;  ///< null when not fed
     float dThr = 0;
     float nThr2 = 0;  ///< the normal threshold squared (the test compares squared distances)
-    bool catmullRom = false;  ///< Catmull-Rom resampling in effect (filter and prevColor)
+    bool catmullRom = false;          ///< Catmull-Rom resampling in effect (filter and prevColor)
+    const int32_t* shared = nullptr;  ///< sharedTaps: the tests' outcomes, taken instead of testing
 };
 
 /// One pixel's inputs to the tap stage.
@@ -172,11 +188,13 @@ struct PixelRef {
     float ppx, ppy, zRef, n0, n1, n2, invZ, invN;
     int32_t refId;
     bool ok;
+    int32_t shared;  ///< the pixel's sharedTaps mask (read only with Sources::shared)
 };
 
 struct PixelOut {
     float c[3], m[2], h;
-    float blur = 0;  ///< resampleBlur: 0 disoccluded, 1 on the 3x3 fallback
+    float blur = 0;    ///< resampleBlur: 0 disoccluded, 1 on the 3x3 fallback
+    int32_t taps = 0;  ///< the tests' outcomes (output `taps`)
 };
 
 // resampleBlur of fractions fx, fy in [0, 1): 2 (fx (1 - fx) + fy (1 - fy)). Both bilinear and
@@ -192,7 +210,11 @@ inline float resampleBlur(float fx, float fy) {
 // image border or off screen, invalid positions, and the (rare) 3x3 fallback.
 PixelOut reprojectPixel(const Sources& S, const PixelRef& P) {
     const int w = S.w, h = S.h;
-    auto consistent = [&](int tx, int ty) -> bool {
+    const bool shared = S.shared != nullptr;
+    int32_t taps = S.catmullRom ? kOuterTested : 0;
+    // `bit`: the tap's bit in the taps mask, recorded (or, with sharedTaps, read instead).
+    auto consistent = [&](int tx, int ty, int bit) -> bool {
+        if (shared) return (P.shared >> bit) & 1;
         if (unsigned(tx) >= unsigned(w) || unsigned(ty) >= unsigned(h)) return false;
         const size_t t = size_t(ty) * size_t(w) + size_t(tx);
         const int32_t id = S.pIds ? S.pIds[t] : 0;
@@ -203,7 +225,9 @@ PixelOut reprojectPixel(const Sources& S, const PixelRef& P) {
             const float dn = nn[c] - px::sanitizeNormal(S.pn[c][t]);
             dn2 = std::fma(dn, dn, dn2);
         }
-        return (id == P.refId) & !(dz > S.dThr) & (dn2 * (P.invN * P.invN) <= S.nThr2);
+        const bool ok = (id == P.refId) & !(dz > S.dThr) & (dn2 * (P.invN * P.invN) <= S.nThr2);
+        taps |= int32_t(ok) << bit;
+        return ok;
     };
     float acc[3] = {0, 0, 0}, accM[2] = {0, 0}, accH = 0, sumW = 0;
     auto addTap = [&](int tx, int ty, float wt) {
@@ -232,7 +256,7 @@ PixelOut reprojectPixel(const Sources& S, const PixelRef& P) {
         int nOk = 0;
         for (int k = 0; k < 4; ++k) {
             const int tx = x0 + (k & 1), ty = y0 + (k >> 1);
-            if (!consistent(tx, ty)) continue;
+            if (!consistent(tx, ty, tapBit(k & 1, k >> 1))) continue;
             ++nOk;
             if (bw[k] > 0.f) addTap(tx, ty, bw[k]);
         }
@@ -243,24 +267,25 @@ PixelOut reprojectPixel(const Sources& S, const PixelRef& P) {
             const int cx = int(std::floor(P.ppx)), cy = int(std::floor(P.ppy));
             for (int j = -1; j <= 1; ++j)
                 for (int k = -1; k <= 1; ++k)
-                    if (consistent(cx + k, cy + j)) addTap(cx + k, cy + j, 1.f);
+                    if (consistent(cx + k, cy + j, fallbackBit(k, j))) addTap(cx + k, cy + j, 1.f);
             all4 = false;
             fallback = true;
         }
     }
-    if (sumW <= 0.f) return {{0, 0, 0}, {0, 0}, 0};  // disoccluded
+    if (sumW <= 0.f) return {{0, 0, 0}, {0, 0}, 0, 0.f, taps};  // disoccluded
     const float inv = 1.f / sumW;
     PixelOut o{{acc[0] * inv, acc[1] * inv, acc[2] * inv},
                {accM[0] * inv, accM[1] * inv},
                accH * inv,
                fallback ? 1.f : resampleBlur(fx, fy)};
-    if (S.catmullRom && all4 && x0 >= 1 && y0 >= 1 && x0 + 2 < w && y0 + 2 < h) {
+    const bool outerTested = !shared || (P.shared & kOuterTested);
+    if (S.catmullRom && all4 && outerTested && x0 >= 1 && y0 >= 1 && x0 + 2 < w && y0 + 2 < h) {
         // Catmull-Rom 4x4 when every tap is consistent, clamped to the inner 2x2 taps' range
         // so negative lobes cannot ring.
         bool all16 = true;
         for (int j = -1; j <= 2 && all16; ++j)
             for (int k = -1; k <= 2 && all16; ++k)
-                if ((j < 0 || j > 1 || k < 0 || k > 1) && !consistent(x0 + k, y0 + j))
+                if ((j < 0 || j > 1 || k < 0 || k > 1) && !consistent(x0 + k, y0 + j, tapBit(k, j)))
                     all16 = false;
         if (all16) {
             float wx[4], wy[4];
@@ -282,6 +307,7 @@ PixelOut reprojectPixel(const Sources& S, const PixelRef& P) {
             }
         }
     }
+    o.taps = taps;
     return o;
 }
 
@@ -314,12 +340,18 @@ struct RowTerms {
     float* sumW;
     float *oc[3], *om[2], *oh;
     bool hasC, hasM, hasH;
+    int32_t* taps;          ///< output row of the taps mask (TapMode::Record)
+    const int32_t* shared;  ///< input row of sharedTaps (TapMode::Shared)
 };
+
+/// How the tap kernel decides consistency: test, test and record the outcomes (output `taps`),
+/// or take them from sharedTaps.
+enum class TapMode { Test, Record, Shared };
 
 // Geo: the depth and normal tests run (geometryTests); without them only the object id is
 // tested, which is what the tests with infinite thresholds give bit for bit (every distance
 // they compare is finite).
-template <bool Contig, bool CR, bool Geo>
+template <bool Contig, bool CR, bool Geo, TapMode M>
 HWY_INLINE void tapVector(const Sources& S, const RowTerms& R, int x, ptrdiff_t base, VI idx) {
     const DF d;
     const DI di;
@@ -342,9 +374,14 @@ HWY_INLINE void tapVector(const Sources& S, const RowTerms& R, int x, ptrdiff_t 
     const VF in2 = hn::Mul(in, in);
     const VI rid = hn::LoadU(di, R.refId + x);
     const VF dThr = hn::Set(d, S.dThr), nThr2 = hn::Set(d, S.nThr2), zero = hn::Zero(d);
+    const VI shared = M == TapMode::Shared ? hn::LoadU(di, R.shared + x) : hn::Zero(di);
+    VI record = hn::Zero(di);  // TapMode::Record: the outcomes
+    auto hasBit = [&](int32_t bit)
+                      HWY_ATTR { return hn::RebindMask(d, hn::TestBit(shared, hn::Set(di, bit))); };
     // The consistency test of the tap at (x0 + k, y0 + j) (SVGF; Falcor's isReprjValid), the
     // normal distance compared squared: no square root per tap.
     auto consistent = [&](int k, int j) HWY_ATTR {
+        if constexpr (M == TapMode::Shared) return hasBit(int32_t(1) << tapBit(k, j));
         MF ok = hn::FirstN(d, hn::Lanes(d));
         if constexpr (Geo) {
             const VF dz = hn::Mul(hn::Abs(hn::Sub(zR, simd::sanitizeDepth(ld(S.pz, k, j)))), iz);
@@ -355,6 +392,9 @@ HWY_INLINE void tapVector(const Sources& S, const RowTerms& R, int x, ptrdiff_t 
             ok = hn::AndNot(hn::Gt(dz, dThr), hn::Le(hn::Mul(dn2, in2), nThr2));
         }
         if (S.pIds) ok = hn::And(ok, hn::RebindMask(d, hn::Eq(ldId(k, j), rid)));
+        if constexpr (M == TapMode::Record)
+            record = hn::Or(record, hn::IfThenElseZero(hn::RebindMask(di, ok),
+                                                       hn::Set(di, int32_t(1) << tapBit(k, j))));
         return ok;
     };
     const MF k00 = consistent(0, 0), k10 = consistent(1, 0), k01 = consistent(0, 1),
@@ -399,6 +439,7 @@ HWY_INLINE void tapVector(const Sources& S, const RowTerms& R, int x, ptrdiff_t 
         MF all16 = hn::FirstN(d, 0);
         if constexpr (CR) {
             all16 = hn::And(hn::And(k00, k10), hn::And(k01, k11));
+            if constexpr (M == TapMode::Shared) all16 = hn::And(all16, hasBit(kOuterTested));
             for (int j = -1; j <= 2 && !hn::AllFalse(d, all16); ++j)
                 for (int k = -1; k <= 2; ++k)
                     if (j < 0 || j > 1 || k < 0 || k > 1) all16 = hn::And(all16, consistent(k, j));
@@ -453,12 +494,15 @@ HWY_INLINE void tapVector(const Sources& S, const RowTerms& R, int x, ptrdiff_t 
                           : hn::Mul(sw, inv);
         hn::StoreU(hl, d, R.oh + x);
     }
+    if constexpr (M == TapMode::Record)
+        hn::StoreU(CR && R.hasC ? hn::Or(record, hn::Set(di, kOuterTested)) : record, di,
+                   R.taps + x);
 }
 
 /// The kernel over pixels [a, b) of one row (b - a >= one vector): vectors at x = a, a + n, ...,
 /// the last one moved left to end at b (its overlap is computed twice, to the same values), so
 /// no lane is stored past the range.
-template <bool CR, bool Geo>
+template <bool CR, bool Geo, TapMode M>
 void tapRow(const Sources& S, const RowTerms& R, int y, int a, int b, const int32_t* rFast,
             const int32_t* rDx, const int32_t* rDy) {
     const DF d;
@@ -478,16 +522,28 @@ void tapRow(const Sources& S, const RowTerms& R, int y, int a, int b, const int3
             if (hn::AllTrue(d, fast) && hn::AllTrue(di, hn::And(hn::Eq(dx, hn::Set(di, dx0)),
                                                                 hn::Eq(dy, hn::Set(di, dy0))))) {
                 const ptrdiff_t base = ptrdiff_t(y + dy0) * w + ptrdiff_t(x + dx0);
-                tapVector<true, CR, Geo>(S, R, x, base, zeroI);
+                tapVector<true, CR, Geo, M>(S, R, x, base, zeroI);
             } else {
                 const VI idx = hn::Add(hn::Mul(hn::Add(dy, hn::Set(di, y)), hn::Set(di, w)),
                                        hn::Add(hn::Iota(di, x), dx));
-                tapVector<false, CR, Geo>(S, R, x, 0,
-                                          hn::IfThenElse(hn::RebindMask(di, fast), idx, safe));
+                tapVector<false, CR, Geo, M>(S, R, x, 0,
+                                             hn::IfThenElse(hn::RebindMask(di, fast), idx, safe));
             }
         }
         if (x == b - n) break;
     }
+}
+
+/// tapRow for the filter (Catmull-Rom or bilinear) and whether the geometry is tested.
+template <TapMode M>
+void tapRows(const Sources& S, const RowTerms& R, int y, int a, int b, const int32_t* rFast,
+             const int32_t* rDx, const int32_t* rDy, bool cr, bool geometry) {
+    if (cr)
+        geometry ? tapRow<true, true, M>(S, R, y, a, b, rFast, rDx, rDy)
+                 : tapRow<true, false, M>(S, R, y, a, b, rFast, rDx, rDy);
+    else
+        geometry ? tapRow<false, true, M>(S, R, y, a, b, rFast, rDx, rDy)
+                 : tapRow<false, false, M>(S, R, y, a, b, rFast, rDx, rDy);
 }
 
 // Per-thread scratch, reused across rows, chunks and frames (no allocation in steady state).
@@ -518,11 +574,18 @@ void reproject(FrameContext& ctx, PassIO& io, bool catmullRom_, bool cameraDepth
     const ImageView* outM = io.hasOutput("moments") ? &io.output("moments") : nullptr;
     const ImageView* outH = io.hasOutput("historyLength") ? &io.output("historyLength") : nullptr;
     const ImageView* outB = io.hasOutput("resampleBlur") ? &io.output("resampleBlur") : nullptr;
+    int32_t* outTaps = io.hasOutput("taps") ? io.output("taps").ints() : nullptr;
+    const int32_t* shared = io.hasInput("sharedTaps") ? io.input("sharedTaps").ints() : nullptr;
+    if (shared && outTaps) {  // resolve leaves taps out then; a harness may still ask for it
+        std::copy_n(shared, size_t(w) * size_t(h), outTaps);
+        outTaps = nullptr;
+    }
     auto zeroAll = [&] {
         for (const ImageView* o : {outC, outM, outH, outB})
             if (o)
                 for (int c = 0; c < o->channels(); ++c)
                     std::fill(o->channel(c), o->channel(c) + o->pixels(), 0.f);
+        if (outTaps) std::fill(outTaps, outTaps + size_t(w) * size_t(h), 0);
     };
     const bool colorValid = io.hasInput("prevColor"), momentsValid = io.hasInput("prevMoments");
     const bool hlValid = io.hasInput("prevHistoryLength");
@@ -560,16 +623,17 @@ void reproject(FrameContext& ctx, PassIO& io, bool catmullRom_, bool cameraDepth
     S.dThr = depthThreshold_;
     S.nThr2 = normalThreshold_ * normalThreshold_;
     S.catmullRom = catmullRom_ && colorValid;
+    S.shared = shared;
     // Tap margin of the tap kernel around (x0, y0): Catmull-Rom reads x0-1..x0+2.
     const bool cr = S.catmullRom;
     // Infinite thresholds (geometryTests off): no tap can fail the depth or normal test, so
-    // neither the derivatives nor the tests are computed.
-    const bool geometry = std::isfinite(S.dThr) || std::isfinite(S.nThr2);
+    // neither the derivatives nor the tests are computed; with sharedTaps no test is.
+    const bool geometry = !shared && (std::isfinite(S.dThr) || std::isfinite(S.nThr2));
     const int lo = cr ? 1 : 0, hi = cr ? 2 : 1;
     // With motion vectors only, the depth a static surface had last frame comes from a camera
     // model fitted to this frame's correspondences (DepthChangeModel.h); the identity otherwise.
     DepthChangeModel depthChange;
-    if (motion && cameraDepth_ && std::isfinite(S.dThr)) {
+    if (motion && cameraDepth_ && geometry && std::isfinite(S.dThr)) {
         const DepthChangeInputs fit{w,
                                     h,
                                     depth.channel(0),
@@ -660,7 +724,9 @@ void reproject(FrameContext& ctx, PassIO& io, bool catmullRom_, bool cameraDepth
                              oh,
                              outC != nullptr,
                              outM != nullptr,
-                             outH != nullptr};
+                             outH != nullptr,
+                             outTaps ? outTaps + rowStart : nullptr,
+                             shared ? shared + rowStart : nullptr};
             // The row in tiles of kTile pixels (the last one takes the remainder): each stage's
             // slice of the row scratch then stays in the L1 cache from one stage to the next.
             // Rows narrower than a vector are left to reprojectPixel (all rows without FMA).
@@ -763,12 +829,13 @@ void reproject(FrameContext& ctx, PassIO& io, bool catmullRom_, bool cameraDepth
                 }
                 if (!vectors)
                     std::fill(rFast + a, rFast + b, 0);
-                else if (cr)
-                    geometry ? tapRow<true, true>(S, R, y, a, b, rFast, rDx, rDy)
-                             : tapRow<true, false>(S, R, y, a, b, rFast, rDx, rDy);
+                else if (shared)
+                    cr ? tapRow<true, false, TapMode::Shared>(S, R, y, a, b, rFast, rDx, rDy)
+                       : tapRow<false, false, TapMode::Shared>(S, R, y, a, b, rFast, rDx, rDy);
+                else if (outTaps)
+                    tapRows<TapMode::Record>(S, R, y, a, b, rFast, rDx, rDy, cr, geometry);
                 else
-                    geometry ? tapRow<false, true>(S, R, y, a, b, rFast, rDx, rDy)
-                             : tapRow<false, false>(S, R, y, a, b, rFast, rDx, rDy);
+                    tapRows<TapMode::Test>(S, R, y, a, b, rFast, rDx, rDy, cr, geometry);
             }
             // Everything else, and the kernel's 3x3-fallback pixels, per pixel.
 #pragma GCC ivdep
@@ -779,9 +846,19 @@ void reproject(FrameContext& ctx, PassIO& io, bool catmullRom_, bool cameraDepth
             if (ob)
                 for (int x = 0; x < w; ++x) ob[x] = redo[x] ? 0.f : resampleBlur(rFx[x], rFy[x]);
             for (int x = nextFlag(redo, 0, w); x < w; x = nextFlag(redo, x + 1, w)) {
-                const PixelRef P{rPpx[x], rPpy[x],  rZRef[x], rn0[x],    rn1[x],
-                                 rn2[x],  rInvZ[x], rInvN[x], rRefId[x], rOk[x] != 0};
+                const PixelRef P{rPpx[x],
+                                 rPpy[x],
+                                 rZRef[x],
+                                 rn0[x],
+                                 rn1[x],
+                                 rn2[x],
+                                 rInvZ[x],
+                                 rInvN[x],
+                                 rRefId[x],
+                                 rOk[x] != 0,
+                                 shared ? shared[rowStart + size_t(x)] : 0};
                 const PixelOut o = reprojectPixel(S, P);
+                if (outTaps) outTaps[rowStart + size_t(x)] = o.taps;
                 for (int c = 0; c < 3; ++c) oc[c][x] = o.c[c];
                 for (int c = 0; c < 2; ++c) om[c][x] = o.m[c];
                 oh[x] = o.h;
@@ -826,6 +903,10 @@ PassDesc ReprojectionPass::describe() {
         .historyInput("prevColor", Format::Float3, "last frame's colour history")
         .historyInput("prevMoments", Format::Float2, "last frame's moments history")
         .historyInput("prevHistoryLength", Format::Float, "last frame's history length")
+        .optionalInput("sharedTaps", Format::Int32,
+                       "another Reprojection's `taps` over the same geometry, motion and "
+                       "thresholds (the specular chain takes the diffuse chain's): its outcomes "
+                       "replace this pass's consistency tests, which are then not run")
         .output("color", Format::Float3, "reprojected colour (0 where disoccluded)")
         .output("moments", Format::Float2, "reprojected moments (0 where disoccluded)")
         .output("historyLength", Format::Float,
@@ -836,6 +917,9 @@ PassDesc ReprojectionPass::describe() {
                 "fy)) of the reprojected position's fractions fx, fy between pixel centres (0 on "
                 "a centre, 1 midway between four), 1 on the 3x3 fallback, 0 where disoccluded "
                 "(TAA weights the history down by it, Karis 2014)")
+        .output("taps", Format::Int32,
+                "which taps passed the consistency tests, a bit per tap (the 4x4 Catmull-Rom "
+                "footprint, the 3x3 fallback), for another reprojection's sharedTaps")
         .paramEnum("filter", "bilinear", {"bilinear", "catmullrom"},
                    "colour resampling: bilinear (SVGF) or Catmull-Rom 4x4 (sharp, for TAA)")
         .paramFloat("depthThreshold", 10.0, 0.0, 1e6,
@@ -868,6 +952,10 @@ void ReprojectionPass::resolve(ResolveContext& rc) {
     if (!rc.isBound("prevColor")) rc.setAbsent("color", "prevColor is not connected");
     if (!rc.isBound("prevMoments")) rc.setAbsent("moments", "prevMoments is not connected");
     depthPrecision_ = depthPrecision(rc);
+    if (rc.isBound("sharedTaps")) {
+        rc.setAbsent("taps", "the taps come from sharedTaps");
+        rc.note("consistency tests taken from sharedTaps");
+    }
     if (rc.isBound("motion")) {
         rc.note("reprojecting with motion vectors");
         // World positions serve only the matrix path: not read, so the loader skips them.

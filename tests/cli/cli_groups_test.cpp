@@ -79,7 +79,7 @@ TEST_F(CliGroups, PassesListsTheGroupsOfAGraphFolder) {
     for (const auto& e : j)
         if (e.value("group", "") == "svgf-chain") {
             chain = true;
-            EXPECT_EQ(e["outputs"], nlohmann::json::array({"color"}));
+            EXPECT_EQ(e["outputs"], nlohmann::json::array({"color", "taps"}));
             EXPECT_EQ(e["params"]["sigmaL"], 4.0);
         }
     EXPECT_TRUE(chain) << r.out;
