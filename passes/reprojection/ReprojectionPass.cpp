@@ -160,16 +160,15 @@ void rowDerivatives(const GeomRows& g, bool u, bool d, int w, int a, int b, floa
 // so that a second reprojection over the same geometry and motion (the specular chain's) reuses
 // them instead of testing again. Bits 0-15: the 4x4 Catmull-Rom footprint, tap (x0 + k, y0 + j)
 // for k, j in -1..2 at bit (j + 1) 4 + k + 1 (the bilinear 2x2 are bits 5, 6, 9 and 10); bits
-// 16-24: the 3x3 fallback, tap (cx + k, cy + j) for k, j in -1..1 at 16 + (j + 1) 3 + k + 1;
-// kOuterTested: the outer 12 taps were tested (Catmull-Rom) where the inner four passed. Taps
-// never tested are 0.
+// 16-24: the 3x3 fallback, tap (cx + k, cy + j) for k, j in -1..1 at 16 + (j + 1) 3 + k + 1.
+// Taps never tested are 0: a bilinear reprojection tests no outer tap, so a Catmull-Rom one
+// given its taps resamples bilinearly.
 constexpr int tapBit(int k, int j) {
     return (j + 1) * 4 + k + 1;
 }
 constexpr int fallbackBit(int k, int j) {
     return 16 + (j + 1) * 3 + k + 1;
 }
-constexpr int32_t kOuterTested = int32_t(1) << 25;
 
 // Every plane the taps read, and the parameters of the consistency test.
 struct Sources {
@@ -211,7 +210,7 @@ inline float resampleBlur(float fx, float fy) {
 PixelOut reprojectPixel(const Sources& S, const PixelRef& P) {
     const int w = S.w, h = S.h;
     const bool shared = S.shared != nullptr;
-    int32_t taps = S.catmullRom ? kOuterTested : 0;
+    int32_t taps = 0;
     // `bit`: the tap's bit in the taps mask, recorded (or, with sharedTaps, read instead).
     auto consistent = [&](int tx, int ty, int bit) -> bool {
         if (shared) return (P.shared >> bit) & 1;
@@ -278,8 +277,7 @@ PixelOut reprojectPixel(const Sources& S, const PixelRef& P) {
                {accM[0] * inv, accM[1] * inv},
                accH * inv,
                fallback ? 1.f : resampleBlur(fx, fy)};
-    const bool outerTested = !shared || (P.shared & kOuterTested);
-    if (S.catmullRom && all4 && outerTested && x0 >= 1 && y0 >= 1 && x0 + 2 < w && y0 + 2 < h) {
+    if (S.catmullRom && all4 && x0 >= 1 && y0 >= 1 && x0 + 2 < w && y0 + 2 < h) {
         // Catmull-Rom 4x4 when every tap is consistent, clamped to the inner 2x2 taps' range
         // so negative lobes cannot ring.
         bool all16 = true;
@@ -376,12 +374,11 @@ HWY_INLINE void tapVector(const Sources& S, const RowTerms& R, int x, ptrdiff_t 
     const VF dThr = hn::Set(d, S.dThr), nThr2 = hn::Set(d, S.nThr2), zero = hn::Zero(d);
     const VI shared = M == TapMode::Shared ? hn::LoadU(di, R.shared + x) : hn::Zero(di);
     VI record = hn::Zero(di);  // TapMode::Record: the outcomes
-    auto hasBit = [&](int32_t bit)
-                      HWY_ATTR { return hn::RebindMask(d, hn::TestBit(shared, hn::Set(di, bit))); };
     // The consistency test of the tap at (x0 + k, y0 + j) (SVGF; Falcor's isReprjValid), the
     // normal distance compared squared: no square root per tap.
     auto consistent = [&](int k, int j) HWY_ATTR {
-        if constexpr (M == TapMode::Shared) return hasBit(int32_t(1) << tapBit(k, j));
+        if constexpr (M == TapMode::Shared)
+            return hn::RebindMask(d, hn::TestBit(shared, hn::Set(di, int32_t(1) << tapBit(k, j))));
         MF ok = hn::FirstN(d, hn::Lanes(d));
         if constexpr (Geo) {
             const VF dz = hn::Mul(hn::Abs(hn::Sub(zR, simd::sanitizeDepth(ld(S.pz, k, j)))), iz);
@@ -439,7 +436,6 @@ HWY_INLINE void tapVector(const Sources& S, const RowTerms& R, int x, ptrdiff_t 
         MF all16 = hn::FirstN(d, 0);
         if constexpr (CR) {
             all16 = hn::And(hn::And(k00, k10), hn::And(k01, k11));
-            if constexpr (M == TapMode::Shared) all16 = hn::And(all16, hasBit(kOuterTested));
             for (int j = -1; j <= 2 && !hn::AllFalse(d, all16); ++j)
                 for (int k = -1; k <= 2; ++k)
                     if (j < 0 || j > 1 || k < 0 || k > 1) all16 = hn::And(all16, consistent(k, j));
@@ -494,9 +490,7 @@ HWY_INLINE void tapVector(const Sources& S, const RowTerms& R, int x, ptrdiff_t 
                           : hn::Mul(sw, inv);
         hn::StoreU(hl, d, R.oh + x);
     }
-    if constexpr (M == TapMode::Record)
-        hn::StoreU(CR && R.hasC ? hn::Or(record, hn::Set(di, kOuterTested)) : record, di,
-                   R.taps + x);
+    if constexpr (M == TapMode::Record) hn::StoreU(record, di, R.taps + x);
 }
 
 /// The kernel over pixels [a, b) of one row (b - a >= one vector): vectors at x = a, a + n, ...,
@@ -906,7 +900,9 @@ PassDesc ReprojectionPass::describe() {
         .optionalInput("sharedTaps", Format::Int32,
                        "another Reprojection's `taps` over the same geometry, motion and "
                        "thresholds (the specular chain takes the diffuse chain's): its outcomes "
-                       "replace this pass's consistency tests, which are then not run")
+                       "replace this pass's consistency tests, which are then not run (a "
+                       "bilinear pass's taps hold no outer taps: Catmull-Rom then resamples "
+                       "bilinearly)")
         .output("color", Format::Float3, "reprojected colour (0 where disoccluded)")
         .output("moments", Format::Float2, "reprojected moments (0 where disoccluded)")
         .output("historyLength", Format::Float,

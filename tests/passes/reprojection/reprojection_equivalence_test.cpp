@@ -323,3 +323,35 @@ TEST_P(ReprojectionEquivalence, Thresholds) {
             expectEquivalent(f, {}, p, 2, "thresholds, half depth");
         }
 }
+
+// A Catmull-Rom reprojection given the taps of a bilinear one (which never tested the outer 12)
+// resamples bilinearly: what a bilinear reprojection of its own gives.
+TEST_P(ReprojectionEquivalence, CatmullRomOnBilinearTapsResamplesBilinearly) {
+    const Frames f = reprojscene::makeFrames(64, 40, 21);
+    auto run = [&](const char* filter, const Image* taps) {
+        auto h = PassHarness::make<ReprojectionPass>(f.depth.extent(), {{"filter", filter}}, 2);
+        h.bind("depth", f.depth);
+        h.bind("normal", f.normal);
+        h.bind("objectId", f.objectId);
+        h.bind("motion", f.motion);
+        h.bind("prevDepth", f.prevDepth);
+        h.bind("prevNormal", f.prevNormal);
+        h.bind("prevObjectId", f.prevObjectId);
+        h.bind("prevColor", f.prevColor);
+        h.bind("prevMoments", f.prevMoments);
+        h.bind("prevHistoryLength", f.prevHistoryLength);
+        if (taps) {
+            h.bind("sharedTaps", *taps);
+            h.useOutputs({"color", "moments", "historyLength", "resampleBlur"});
+        }
+        h.run();
+        return h;
+    };
+    const PassHarness bilinear = run("bilinear", nullptr);
+    Image taps(f.depth.extent(), Format::Int32);
+    std::copy_n(bilinear.out("taps").view().ints(), taps.view().pixels(), taps.view().ints());
+    const PassHarness shared = run("catmullrom", &taps);
+    EXPECT_TRUE(sameBits(shared.out("color"), bilinear.out("color")));
+    const PassHarness own = run("catmullrom", nullptr);
+    EXPECT_FALSE(sameBits(own.out("color"), bilinear.out("color")));  // Catmull-Rom differs
+}
