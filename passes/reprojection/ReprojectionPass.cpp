@@ -374,6 +374,11 @@ HWY_INLINE void tapVector(const Sources& S, const RowTerms& R, int x, ptrdiff_t 
     const VF dThr = hn::Set(d, S.dThr), nThr2 = hn::Set(d, S.nThr2), zero = hn::Zero(d);
     const VI shared = M == TapMode::Shared ? hn::LoadU(di, R.shared + x) : hn::Zero(di);
     VI record = hn::Zero(di);  // TapMode::Record: the outcomes
+    auto recordTap = [&](MF passed, int k, int j) HWY_ATTR {
+        if constexpr (M == TapMode::Record)
+            record = hn::Or(record, hn::IfThenElseZero(hn::RebindMask(di, passed),
+                                                       hn::Set(di, int32_t(1) << tapBit(k, j))));
+    };
     // The consistency test of the tap at (x0 + k, y0 + j) (SVGF; Falcor's isReprjValid), the
     // normal distance compared squared: no square root per tap.
     auto consistent = [&](int k, int j) HWY_ATTR {
@@ -389,13 +394,31 @@ HWY_INLINE void tapVector(const Sources& S, const RowTerms& R, int x, ptrdiff_t 
             ok = hn::AndNot(hn::Gt(dz, dThr), hn::Le(hn::Mul(dn2, in2), nThr2));
         }
         if (S.pIds) ok = hn::And(ok, hn::RebindMask(d, hn::Eq(ldId(k, j), rid)));
-        if constexpr (M == TapMode::Record)
-            record = hn::Or(record, hn::IfThenElseZero(hn::RebindMask(di, ok),
-                                                       hn::Set(di, int32_t(1) << tapBit(k, j))));
         return ok;
     };
     const MF k00 = consistent(0, 0), k10 = consistent(1, 0), k01 = consistent(0, 1),
              k11 = consistent(1, 1);
+    recordTap(k00, 0, 0);
+    recordTap(k10, 1, 0);
+    recordTap(k01, 0, 1);
+    recordTap(k11, 1, 1);
+    // Catmull-Rom (TAA histories): 4x4 where all 16 taps are consistent. The outer 12 are tested
+    // only where the inner four passed, in reprojectPixel's order, and recorded as passed while
+    // every earlier one passed (reprojectPixel stops at the first failure), so the taps are the
+    // same bits on every path and target; tested whether or not the colour is consumed, since a
+    // sharedTaps consumer may resample it.
+    MF all16 = hn::FirstN(d, 0);
+    if constexpr (CR) {
+        if (R.hasC || M == TapMode::Record) {
+            all16 = hn::And(hn::And(k00, k10), hn::And(k01, k11));
+            for (int j = -1; j <= 2 && !hn::AllFalse(d, all16); ++j)
+                for (int k = -1; k <= 2; ++k)
+                    if (j < 0 || j > 1 || k < 0 || k > 1) {
+                        all16 = hn::And(all16, consistent(k, j));
+                        recordTap(all16, k, j);
+                    }
+        }
+    }
     const VF w0 = hn::LoadU(d, R.bw[0] + x), w1 = hn::LoadU(d, R.bw[1] + x),
              w2 = hn::LoadU(d, R.bw[2] + x), w3 = hn::LoadU(d, R.bw[3] + x);
     // Taps that count: consistent with positive weight, summed in tap order.
@@ -430,16 +453,8 @@ HWY_INLINE void tapVector(const Sources& S, const RowTerms& R, int x, ptrdiff_t 
     // is kept.
     if (R.hasC) {
         VF col[3];
-        // Catmull-Rom (TAA histories): 4x4 where all 16 taps are consistent, clamped to the
-        // inner 2x2 taps' range so negative lobes cannot ring. The outer 12 tests only where the
-        // inner four passed; the bilinear colour only where some lane is not Catmull-Rom.
-        MF all16 = hn::FirstN(d, 0);
-        if constexpr (CR) {
-            all16 = hn::And(hn::And(k00, k10), hn::And(k01, k11));
-            for (int j = -1; j <= 2 && !hn::AllFalse(d, all16); ++j)
-                for (int k = -1; k <= 2; ++k)
-                    if (j < 0 || j > 1 || k < 0 || k > 1) all16 = hn::And(all16, consistent(k, j));
-        }
+        // Catmull-Rom clamped to the inner 2x2 taps' range so negative lobes cannot ring; the
+        // bilinear colour only where some lane is not Catmull-Rom.
         const bool allCR = CR && hn::AllTrue(d, all16);
         if (!allCR)
             for (int c = 0; c < 3; ++c)

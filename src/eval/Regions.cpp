@@ -218,7 +218,10 @@ DisplayFrame RegionStats::add(const ImageView& out, const ImageView& ref, const 
         }
     }
     for (int k = 0; k < kRegionCount; ++k) framesWith[size_t(k)] += seen[size_t(k)];
-    if (previous && previous->out.view().pixels() == n && previous->ref.view().pixels() == n)
+    const auto sameSize = [&](const Image& a) {
+        return a.width() == o.width() && a.height() == o.height();
+    };
+    if (previous && sameSize(previous->out) && sameSize(previous->ref))
         for (int c = 0; c < 3; ++c) {
             const float *po = o.view().channel(c), *pr = r.view().channel(c),
                         *qo = previous->out.view().channel(c),

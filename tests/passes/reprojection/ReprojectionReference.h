@@ -45,7 +45,17 @@ struct Params {
 
 struct Outputs {
     Image color, moments, historyLength;
+    Image taps;  ///< Int32: which taps passed (the pass's `taps` layout, below)
 };
+
+// The `taps` bits: tap (x0 + k, y0 + j) of the 4x4 footprint at (j + 1) 4 + k + 1, tap
+// (cx + k, cy + j) of the 3x3 fallback at 16 + (j + 1) 3 + k + 1.
+inline int tapBit(int k, int j) {
+    return (j + 1) * 4 + k + 1;
+}
+inline int fallbackBit(int k, int j) {
+    return 16 + (j + 1) * 3 + k + 1;
+}
 
 inline void catmullRomWeights(float t, float w[4]) {
     const float t2 = t * t, t3 = t2 * t;
@@ -58,7 +68,7 @@ inline void catmullRomWeights(float t, float w[4]) {
 inline Outputs reproject(const Inputs& in, const Params& p) {
     const int w = in.depth->width(), h = in.depth->height();
     Outputs out{Image(w, h, Format::Float3), Image(w, h, Format::Float2),
-                Image(w, h, Format::Float)};  // zero-initialised
+                Image(w, h, Format::Float), Image(w, h, Format::Int32)};  // zero-initialised
     if (!in.prevDepth || !in.prevNormal || (!in.prevColor && !in.prevMoments)) return out;
     const Image &depth = *in.depth, &normal = *in.normal, &pDepth = *in.prevDepth,
                 &pNormal = *in.prevNormal;
@@ -148,7 +158,7 @@ inline Outputs reproject(const Inputs& in, const Params& p) {
             const float invZ = 1.f / ((surface ? fwZ : 0.f) + 2.f * p.depthPrecision * zc + 1e-2f),
                         invN = 1.f / (fwN + 1e-2f);
 
-            auto consistent = [&](int tx, int ty) {
+            auto passes = [&](int tx, int ty) {
                 if (tx < 0 || ty < 0 || tx >= w || ty >= h) return false;
                 if (useIds && in.prevObjectId->atInt(tx, ty) != in.objectId->atInt(x, y))
                     return false;
@@ -161,6 +171,12 @@ inline Outputs reproject(const Inputs& in, const Params& p) {
                 }
                 // |n - n_prev| * invN <= nThr, squared (no square root per tap).
                 return dn2 * (invN * invN) <= nThr * nThr;
+            };
+            int32_t& taps = out.taps.atInt(x, y);
+            auto consistent = [&](int tx, int ty, int bit) {
+                const bool ok = passes(tx, ty);
+                taps |= int32_t(ok) << bit;
+                return ok;
             };
 
             float acc[3] = {0, 0, 0}, accM[2] = {0, 0}, accH = 0, sumW = 0;
@@ -189,7 +205,7 @@ inline Outputs reproject(const Inputs& in, const Params& p) {
                 int nOk = 0;
                 for (int k = 0; k < 4; ++k) {
                     const int tx = x0 + (k & 1), ty = y0 + (k >> 1);
-                    if (!consistent(tx, ty)) continue;
+                    if (!consistent(tx, ty, tapBit(k & 1, k >> 1))) continue;
                     ++nOk;
                     if (bw[k] > 0.f) addTap(tx, ty, bw[k]);
                 }
@@ -199,7 +215,8 @@ inline Outputs reproject(const Inputs& in, const Params& p) {
                     const int cx = int(std::floor(ppx)), cy = int(std::floor(ppy));
                     for (int j = -1; j <= 1; ++j)
                         for (int k = -1; k <= 1; ++k)
-                            if (consistent(cx + k, cy + j)) addTap(cx + k, cy + j, 1.f);
+                            if (consistent(cx + k, cy + j, fallbackBit(k, j)))
+                                addTap(cx + k, cy + j, 1.f);
                     all4 = false;
                 }
             }
@@ -210,7 +227,8 @@ inline Outputs reproject(const Inputs& in, const Params& p) {
                 bool all16 = true;
                 for (int j = -1; j <= 2 && all16; ++j)
                     for (int k = -1; k <= 2 && all16; ++k)
-                        if ((j < 0 || j > 1 || k < 0 || k > 1) && !consistent(x0 + k, y0 + j))
+                        if ((j < 0 || j > 1 || k < 0 || k > 1) &&
+                            !consistent(x0 + k, y0 + j, tapBit(k, j)))
                             all16 = false;
                 if (all16) {
                     float wx[4], wy[4];

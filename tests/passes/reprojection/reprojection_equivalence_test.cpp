@@ -133,6 +133,10 @@ void expectEquivalent(const Frames& f, const Binding& b, const reprojref::Params
     EXPECT_TRUE(sameBits(h.out("color"), ref.color)) << "color";
     EXPECT_TRUE(sameBits(h.out("moments"), ref.moments)) << "moments";
     EXPECT_TRUE(sameBits(h.out("historyLength"), ref.historyLength)) << "historyLength";
+    EXPECT_EQ(std::memcmp(h.out("taps").view().ints(), ref.taps.view().ints(),
+                          ref.taps.view().pixels() * sizeof(int32_t)),
+              0)
+        << "taps: the same bits on every path and target";
 
     // A second reprojection given this one's taps (as the specular chain takes the diffuse
     // chain's) gives the same outputs without testing: its own last-frame geometry is garbage,
@@ -354,4 +358,32 @@ TEST_P(ReprojectionEquivalence, CatmullRomOnBilinearTapsResamplesBilinearly) {
     EXPECT_TRUE(sameBits(shared.out("color"), bilinear.out("color")));
     const PassHarness own = run("catmullrom", nullptr);
     EXPECT_FALSE(sameBits(own.out("color"), bilinear.out("color")));  // Catmull-Rom differs
+}
+
+// The taps do not depend on which outputs the producer feeds: without its colour consumed it
+// still tests the outer Catmull-Rom taps that a consumer's colour needs.
+TEST_P(ReprojectionEquivalence, TapsDoNotDependOnTheOutputsConsumed) {
+    const Frames f = reprojscene::makeFrames(64, 40, 22);
+    auto run = [&](bool colour) {
+        auto h =
+            PassHarness::make<ReprojectionPass>(f.depth.extent(), {{"filter", "catmullrom"}}, 2);
+        for (auto [port, image] : {std::pair<const char*, const Image*>{"depth", &f.depth},
+                                   {"normal", &f.normal},
+                                   {"objectId", &f.objectId},
+                                   {"motion", &f.motion},
+                                   {"prevDepth", &f.prevDepth},
+                                   {"prevNormal", &f.prevNormal},
+                                   {"prevObjectId", &f.prevObjectId},
+                                   {"prevColor", &f.prevColor},
+                                   {"prevMoments", &f.prevMoments},
+                                   {"prevHistoryLength", &f.prevHistoryLength}})
+            h.bind(port, *image);
+        if (!colour) h.useOutputs({"moments", "historyLength", "taps"});
+        h.run();
+        return h;
+    };
+    const PassHarness all = run(true), noColour = run(false);
+    EXPECT_EQ(std::memcmp(all.out("taps").view().ints(), noColour.out("taps").view().ints(),
+                          all.out("taps").view().pixels() * sizeof(int32_t)),
+              0);
 }
