@@ -328,35 +328,43 @@ TEST_P(ReprojectionEquivalence, Thresholds) {
         }
 }
 
+namespace {
+/// A Catmull-Rom or bilinear Reprojection of `f` with every input bound (motion vectors).
+PassHarness motionReprojection(const Frames& f, const char* filter) {
+    auto h = PassHarness::make<ReprojectionPass>(f.depth.extent(), {{"filter", filter}}, 2);
+    for (auto [port, image] : {std::pair<const char*, const Image*>{"depth", &f.depth},
+                               {"normal", &f.normal},
+                               {"objectId", &f.objectId},
+                               {"motion", &f.motion},
+                               {"prevDepth", &f.prevDepth},
+                               {"prevNormal", &f.prevNormal},
+                               {"prevObjectId", &f.prevObjectId},
+                               {"prevColor", &f.prevColor},
+                               {"prevMoments", &f.prevMoments},
+                               {"prevHistoryLength", &f.prevHistoryLength}})
+        h.bind(port, *image);
+    return h;
+}
+
+bool sameTaps(const PassHarness& a, const PassHarness& b) {
+    const ImageView &ta = a.out("taps").view(), &tb = b.out("taps").view();
+    return std::memcmp(ta.ints(), tb.ints(), ta.pixels() * sizeof(int32_t)) == 0;
+}
+}  // namespace
+
 // A Catmull-Rom reprojection given the taps of a bilinear one (which never tested the outer 12)
 // resamples bilinearly: what a bilinear reprojection of its own gives.
 TEST_P(ReprojectionEquivalence, CatmullRomOnBilinearTapsResamplesBilinearly) {
     const Frames f = reprojscene::makeFrames(64, 40, 21);
-    auto run = [&](const char* filter, const Image* taps) {
-        auto h = PassHarness::make<ReprojectionPass>(f.depth.extent(), {{"filter", filter}}, 2);
-        h.bind("depth", f.depth);
-        h.bind("normal", f.normal);
-        h.bind("objectId", f.objectId);
-        h.bind("motion", f.motion);
-        h.bind("prevDepth", f.prevDepth);
-        h.bind("prevNormal", f.prevNormal);
-        h.bind("prevObjectId", f.prevObjectId);
-        h.bind("prevColor", f.prevColor);
-        h.bind("prevMoments", f.prevMoments);
-        h.bind("prevHistoryLength", f.prevHistoryLength);
-        if (taps) {
-            h.bind("sharedTaps", *taps);
-            h.useOutputs({"color", "moments", "historyLength", "resampleBlur"});
-        }
-        h.run();
-        return h;
-    };
-    const PassHarness bilinear = run("bilinear", nullptr);
-    Image taps(f.depth.extent(), Format::Int32);
-    std::copy_n(bilinear.out("taps").view().ints(), taps.view().pixels(), taps.view().ints());
-    const PassHarness shared = run("catmullrom", &taps);
+    PassHarness bilinear = motionReprojection(f, "bilinear");
+    bilinear.run();
+    PassHarness shared = motionReprojection(f, "catmullrom");
+    shared.bind("sharedTaps", bilinear.out("taps"));
+    shared.useOutputs({"color", "moments", "historyLength", "resampleBlur"});
+    shared.run();
     EXPECT_TRUE(sameBits(shared.out("color"), bilinear.out("color")));
-    const PassHarness own = run("catmullrom", nullptr);
+    PassHarness own = motionReprojection(f, "catmullrom");
+    own.run();
     EXPECT_FALSE(sameBits(own.out("color"), bilinear.out("color")));  // Catmull-Rom differs
 }
 
@@ -364,26 +372,10 @@ TEST_P(ReprojectionEquivalence, CatmullRomOnBilinearTapsResamplesBilinearly) {
 // still tests the outer Catmull-Rom taps that a consumer's colour needs.
 TEST_P(ReprojectionEquivalence, TapsDoNotDependOnTheOutputsConsumed) {
     const Frames f = reprojscene::makeFrames(64, 40, 22);
-    auto run = [&](bool colour) {
-        auto h =
-            PassHarness::make<ReprojectionPass>(f.depth.extent(), {{"filter", "catmullrom"}}, 2);
-        for (auto [port, image] : {std::pair<const char*, const Image*>{"depth", &f.depth},
-                                   {"normal", &f.normal},
-                                   {"objectId", &f.objectId},
-                                   {"motion", &f.motion},
-                                   {"prevDepth", &f.prevDepth},
-                                   {"prevNormal", &f.prevNormal},
-                                   {"prevObjectId", &f.prevObjectId},
-                                   {"prevColor", &f.prevColor},
-                                   {"prevMoments", &f.prevMoments},
-                                   {"prevHistoryLength", &f.prevHistoryLength}})
-            h.bind(port, *image);
-        if (!colour) h.useOutputs({"moments", "historyLength", "taps"});
-        h.run();
-        return h;
-    };
-    const PassHarness all = run(true), noColour = run(false);
-    EXPECT_EQ(std::memcmp(all.out("taps").view().ints(), noColour.out("taps").view().ints(),
-                          all.out("taps").view().pixels() * sizeof(int32_t)),
-              0);
+    PassHarness all = motionReprojection(f, "catmullrom");
+    all.run();
+    PassHarness noColour = motionReprojection(f, "catmullrom");
+    noColour.useOutputs({"moments", "historyLength", "taps"});
+    noColour.run();
+    EXPECT_TRUE(sameTaps(all, noColour));
 }
