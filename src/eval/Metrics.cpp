@@ -299,8 +299,7 @@ double temporalInstability(const ImageView& out, const ImageView& outPrev, const
     for (int c = 0; c < kRgb; ++c) {
         const float *o = out.channel(c), *op = outPrev.channel(c);
         const float *r = ref.channel(c), *rp = refPrev.channel(c);
-        for (size_t i = 0; i < n; ++i)
-            total += std::fabs((double(o[i]) - op[i]) - (double(r[i]) - rp[i]));
+        for (size_t i = 0; i < n; ++i) total += temporalError(o[i], op[i], r[i], rp[i]);
     }
     return n ? total / double(n * kRgb) : 0.0;
 }

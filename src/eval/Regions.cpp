@@ -227,7 +227,7 @@ DisplayFrame RegionStats::add(const ImageView& out, const ImageView& ref, const 
                         *qo = previous->out.view().channel(c),
                         *qr = previous->ref.view().channel(c);
             for (size_t i = 0; i < n; ++i) {
-                const double e = std::fabs((double(po[i]) - qo[i]) - (double(pr[i]) - qr[i]));
+                const double e = temporalError(po[i], qo[i], pr[i], qr[i]);
                 for (int k = 0; k < kRegionCount; ++k)
                     if (masks[size_t(k)][i]) {
                         temporalSum[size_t(k)] += e;

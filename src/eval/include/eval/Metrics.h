@@ -66,7 +66,13 @@ double relMse(const ImageView& out, const ImageView& ref);
 double psnr(const ImageView& outDisplay, const ImageView& refDisplay);
 /// Mean SSIM of display values in [0, 1].
 double ssim(const ImageView& outDisplay, const ImageView& refDisplay);
-/// Mean |(o_t - o_prev) - (r_t - r_prev)| over pixels and R, G, B (display values).
+/// One display value's temporal error |(o_t - o_prev) - (r_t - r_prev)|: zero when the output
+/// changes exactly as the reference does.
+inline double temporalError(float o, float oPrev, float r, float rPrev) {
+    const double d = (double(o) - oPrev) - (double(r) - rPrev);
+    return d < 0 ? -d : d;
+}
+/// Mean temporalError over pixels and R, G, B (display values).
 double temporalInstability(const ImageView& out, const ImageView& outPrev, const ImageView& ref,
                            const ImageView& refPrev);
 

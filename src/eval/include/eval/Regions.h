@@ -65,7 +65,7 @@ struct DisplayFrame {
 };
 
 /// Sums of squared display-value errors per region, over frames, and of the output's temporal
-/// instability (Metrics.h: |(o_t - o_t-1) - (r_t - r_t-1)|) over the region's pixels in frame t.
+/// instability (Metrics.h: temporalError) over the region's pixels in frame t.
 struct RegionStats {
     std::array<double, kRegionCount> outSse{}, inSse{};
     std::array<uint64_t, kRegionCount> samples{};  ///< pixel-channels
