@@ -17,6 +17,7 @@
 #define HWY_TARGET_INCLUDE "AntiLagPass.cpp"
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
 #include <hwy/highway.h>
+#include <kestrel/SimdMath.h>
 
 HWY_BEFORE_NAMESPACE();
 namespace kestrel::HWY_NAMESPACE {
@@ -54,7 +55,9 @@ struct ValidMask {
     const uint64_t* row(int y) const { return bits.data() + size_t(y) * size_t(words); }
 };
 
-/// The per-pixel terms of image row y, written from t[k] + pad on.
+/// The per-pixel terms of image row y, written from t[k] + pad on. Explicit vectors: GCC left
+/// the selects and sanitisers scalar. Luminance as px::luminance rounds it (products, then sums
+/// left to right, no fused multiply-add), so every target gives the same bits.
 void rowTerms(const ImageView& color, const ImageView& history, const ValidMask& valid, int y,
               const RowSums& t, int pad) {
     const int w = color.width();
@@ -62,10 +65,36 @@ void rowTerms(const ImageView& color, const ImageView& history, const ValidMask&
                 *hr = history.row(0, y), *hg = history.row(1, y), *hb = history.row(2, y);
     const uint64_t* vm = valid.row(y);
     float *tn = t[N] + pad, *tc = t[C] + pad, *tc2 = t[C2] + pad, *th = t[H] + pad;
-    for (int x = 0; x < w; ++x) tn[x] = float((vm[x >> 6] >> (x & 63)) & 1u);
-    for (int x = 0; x < w; ++x) {  // vectorised
-        const bool v = tn[x] != 0.f;
+    const hn::ScalableTag<float> d;
+    const int lanes = int(hn::Lanes(d));
+    const auto kr = hn::Set(d, 0.2126f), kg = hn::Set(d, 0.7152f), kb = hn::Set(d, 0.0722f);
+    const auto zero = hn::Zero(d), one = hn::Set(d, 1.f);
+    auto lum = [&](const float* pr, const float* pg, const float* pb, int x) HWY_ATTR {
+        const auto l = hn::Add(hn::Add(hn::Mul(kr, simd::sanitize(hn::LoadU(d, pr + x))),
+                                       hn::Mul(kg, simd::sanitize(hn::LoadU(d, pg + x)))),
+                               hn::Mul(kb, simd::sanitize(hn::LoadU(d, pb + x))));
+        return hn::Max(zero, l);  // as std::max(l, 0.f): -0 stays -0
+    };
+    int x = 0;
+    // A vector's lanes lie in one mask word: the lane count divides 64.
+    if (lanes <= 64 && 64 % lanes == 0) {
+        const uint64_t laneBits = lanes == 64 ? ~uint64_t(0) : (uint64_t(1) << lanes) - 1u;
+        for (; x + lanes <= w; x += lanes) {
+            const uint64_t bits = (vm[x >> 6] >> (x & 63)) & laneBits;
+            uint8_t bytes[8];
+            for (int i = 0; i < 8; ++i) bytes[i] = uint8_t(bits >> (8 * i));
+            const auto v = hn::LoadMaskBits(d, bytes);
+            const auto lc = hn::IfThenElseZero(v, lum(r, g, b, x));
+            hn::StoreU(hn::IfThenElseZero(v, one), d, tn + x);
+            hn::StoreU(lc, d, tc + x);
+            hn::StoreU(hn::Mul(lc, lc), d, tc2 + x);
+            hn::StoreU(hn::IfThenElseZero(v, lum(hr, hg, hb, x)), d, th + x);
+        }
+    }
+    for (; x < w; ++x) {
+        const bool v = (vm[x >> 6] >> (x & 63)) & 1u;
         const float lc = v ? luminance(r[x], g[x], b[x]) : 0.f;
+        tn[x] = v ? 1.f : 0.f;
         tc[x] = lc;
         tc2[x] = lc * lc;
         th[x] = v ? luminance(hr[x], hg[x], hb[x]) : 0.f;
@@ -122,6 +151,35 @@ inline float gate(float hl, float n, float c, float c2, float hs, float sigma) {
     return validLength(hl) ? shortened(std::min(hl, kMaxLength), lambda) : 0.f;
 }
 
+/// gate() for one row, explicit vectors (the same operations in the same order: IEEE division
+/// and square root, no fused multiply-add, so the same bits as the scalar tail).
+void gateRow(const float* hl, const RowSums& col, float* o, int w, float sigma) {
+    const hn::ScalableTag<float> d;
+    const int lanes = int(hn::Lanes(d));
+    const auto zero = hn::Zero(d), one = hn::Set(d, 1.f), vsigma = hn::Set(d, sigma);
+    const auto tiny = hn::Set(d, std::numeric_limits<float>::min());
+    const auto maxLength = hn::Set(d, kMaxLength),
+               floatMax = hn::Set(d, std::numeric_limits<float>::max());
+    int x = 0;
+    for (; x + lanes <= w; x += lanes) {
+        const auto n = hn::Max(hn::LoadU(d, col[N] + x), one);
+        const auto mc = hn::Div(hn::LoadU(d, col[C] + x), n);
+        const auto mh = hn::Div(hn::LoadU(d, col[H] + x), n);
+        const auto spread = hn::Sub(hn::Div(hn::LoadU(d, col[C2] + x), n), hn::Mul(mc, mc));
+        const auto stdErr = hn::Sqrt(hn::Div(hn::Max(spread, zero), n));
+        const auto excess =
+            hn::Max(hn::Sub(hn::Abs(hn::Sub(mh, mc)), hn::Mul(vsigma, stdErr)), zero);
+        const auto lambda = hn::Min(hn::Div(excess, hn::Max(hn::Min(mh, mc), tiny)), one);
+        const auto h = hn::LoadU(d, hl + x);
+        const auto valid = hn::And(hn::Gt(h, zero), hn::Le(h, floatMax));
+        const auto l = hn::Min(h, maxLength);
+        const auto shortened =
+            hn::Div(hn::Mul(l, hn::Sub(one, lambda)), hn::Add(one, hn::Mul(lambda, l)));
+        hn::StoreU(hn::IfThenElseZero(valid, shortened), d, o + x);
+    }
+    for (; x < w; ++x) o[x] = gate(hl[x], col[N][x], col[C][x], col[C2][x], col[H][x], sigma);
+}
+
 void gateRows(const ImageView& color, const ImageView& history, const ValidMask& valid,
               const ImageView& length, const ImageView& out, AntiLagPass::Settings s, int y0,
               int y1) {
@@ -154,10 +212,30 @@ void gateRows(const ImageView& color, const ImageView& history, const ValidMask&
             for (int yy = top; yy <= bottom; ++yy) rows[size_t(yy - top)] = ring(yy)[k];
             sumRows(rows.data(), bottom - top + 1, col[k], w);
         }
+        gateRow(length.row(0, y), col, out.row(0, y), w, s.sigma);
+    }
+}
+
+/// Rows [y0, y1) of the validity mask: whole vectors where the lane count divides 64 (each
+/// vector's bits land in one word), the rest one pixel at a time.
+void markValidRows(const ImageView& length, ValidMask& valid, int w, int y0, int y1) {
+    const hn::ScalableTag<float> d;
+    const int lanes = int(hn::Lanes(d));
+    const bool whole = lanes <= 64 && 64 % lanes == 0;
+    const auto zero = hn::Zero(d), floatMax = hn::Set(d, std::numeric_limits<float>::max());
+    for (int y = y0; y < y1; ++y) {
         const float* hl = length.row(0, y);
-        float* o = out.row(0, y);
-        for (int x = 0; x < w; ++x)
-            o[x] = gate(hl[x], col[N][x], col[C][x], col[C2][x], col[H][x], s.sigma);
+        uint64_t* vm = valid.row(y);
+        int x = 0;
+        for (; whole && x + lanes <= w; x += lanes) {
+            const auto h = hn::LoadU(d, hl + x);
+            uint8_t bytes[8] = {};
+            hn::StoreMaskBits(d, hn::And(hn::Gt(h, zero), hn::Le(h, floatMax)), bytes);
+            uint64_t bits = 0;
+            for (int i = 0; i < 8; ++i) bits |= uint64_t(bytes[i]) << (8 * i);
+            vm[x >> 6] |= bits << (x & 63);
+        }
+        for (; x < w; ++x) vm[x >> 6] |= uint64_t(validLength(hl[x])) << (x & 63);
     }
 }
 
@@ -167,13 +245,8 @@ void executeOnTarget(FrameContext& ctx, PassIO& io, AntiLagPass::Settings s) {
                     &length = io.input("historyLength"), &out = io.output("historyLength");
     const int w = ctx.extent.width;
     ValidMask valid(w, ctx.extent.height);
-    ctx.parallelRows(ctx.extent.height, [&](int y0, int y1) {
-        for (int y = y0; y < y1; ++y) {
-            const float* hl = length.row(0, y);
-            uint64_t* vm = valid.row(y);
-            for (int x = 0; x < w; ++x) vm[x >> 6] |= uint64_t(validLength(hl[x])) << (x & 63);
-        }
-    });
+    ctx.parallelRows(ctx.extent.height,
+                     [&](int y0, int y1) { markValidRows(length, valid, w, y0, y1); });
     // Bands of 64 rows: each band first sums the 2 radius rows around it, which rows split
     // finer (the engine's chunks are as small as one row) would repeat several times over.
     constexpr int kBand = 64;
