@@ -6,6 +6,9 @@
 #include <kestrel/PixelMath.h>
 #include <kestrel/Scratch.h>
 
+#include <cstdio>
+#include <span>
+#include <string>
 #include <vector>
 
 #include "VarianceReference.h"
@@ -15,11 +18,21 @@
 namespace {
 constexpr int kRadius = 3;  // 7x7 (SVGF section 4.2)
 
+/// The geometry and settings shared by the signals filtered together.
 struct Inputs {
     int w, h;
-    const kestrel::ImageView *color, *moments, *hist, *var, *depth, *normal;
+    const kestrel::ImageView *depth, *normal;
     const int32_t* ids;
     float sigmaZ, sigmaN, invSigmaL;
+};
+
+/// One signal's images (a fused pair filters two with the same weights: VarianceEstimation has
+/// no luminance term by default, so its weights are the geometry's alone).
+struct Signal {
+    const kestrel::ImageView *color, *moments, *hist, *var;
+    const kestrel::ImageView* outC;
+    const kestrel::ImageView* outV;  ///< null where the variance is not consumed
+    float minHist;
 };
 }  // namespace
 #endif
@@ -44,9 +57,10 @@ using simd::VI;
 
 /// The spatial estimate of one pixel, plain scalar code: used where a vector block would read
 /// outside the image (the first and last columns, the row's tail).
-void estimatePixel(const Inputs& in, int x, int y, float hl, float* c3, float* v) {
+void estimatePixel(const Inputs& in, const Signal& sig, int x, int y, float hl, float* c3,
+                   float* v) {
     const int w = in.w, h = in.h;
-    auto col = [&](int c, int xq, int yq) { return px::sanitize(in.color->at(c, xq, yq)); };
+    auto col = [&](int c, int xq, int yq) { return px::sanitize(sig.color->at(c, xq, yq)); };
     auto lum = [&](int xq, int yq) {
         return px::luminance(col(0, xq, yq), col(1, xq, yq), col(2, xq, yq));
     };
@@ -86,8 +100,8 @@ void estimatePixel(const Inputs& in, int x, int y, float hl, float* c3, float* v
             }
             sw += wt;
             for (int c = 0; c < 3; ++c) sc[c] += wt * col(c, xq, yq);
-            m1 += wt * px::sanitize(in.moments->at(0, xq, yq));
-            m2 += wt * px::sanitizePositive(in.moments->at(1, xq, yq), 1e32f);
+            m1 += wt * px::sanitize(sig.moments->at(0, xq, yq));
+            m2 += wt * px::sanitizePositive(sig.moments->at(1, xq, yq), 1e32f);
         }
     }
     const float inv = 1.f / sw;  // sw >= 1 (centre)
@@ -99,34 +113,48 @@ void estimatePixel(const Inputs& in, int x, int y, float hl, float* c3, float* v
 }
 
 /// Sanitised copies of columns [c0, c1) of one band's rows (and the 3 rows its taps reach above
-/// and below): the 7x7 taps then load plain values instead of sanitising each of 49 reads.
-enum Plane { R, G, B, L, Z, NX, NY, NZ, M1, M2, kPlaneCount };
+/// and below): the 7x7 taps then load plain values instead of sanitising each of 49 reads. The
+/// geometry's planes first, then each signal's six.
+enum Plane { Z, NX, NY, NZ, kGeometryPlanes };
+enum SignalPlane { L, R, G, B, M1, M2, kSignalPlanes };
+constexpr int plane(int signal, SignalPlane p) {
+    return kGeometryPlanes + kSignalPlanes * signal + p;
+}
 
-void prepareRow(const Inputs& in, int y, float* const* P, size_t o, int c0, int c1) {
+void prepareRow(const Inputs& in, std::span<const Signal> sig, int y, float* const* P, size_t o,
+                int c0, int c1) {
     for (int c = 0; c < 3; ++c) {
-        const float* src = in.color->row(c, y);
-        float* dst = P[R + c] + o;
-        for (int x = c0; x < c1; ++x) dst[x] = px::sanitize(src[x]);
         const float* n = in.normal->row(c, y);
         float* nd = P[NX + c] + o;
         for (int x = c0; x < c1; ++x) nd[x] = px::sanitizeNormal(n[x]);
     }
     const float* z = in.depth->row(0, y);
-    const float* m1 = in.moments->row(0, y);
-    const float* m2 = in.moments->row(1, y);
-    float *pz = P[Z] + o, *pm1 = P[M1] + o, *pm2 = P[M2] + o, *pl = P[L] + o;
-    const float *r = P[R] + o, *g = P[G] + o, *b = P[B] + o;
+    float* pz = P[Z] + o;
     for (int x = c0; x < c1; ++x) pz[x] = px::sanitizeDepth(z[x]);
-    for (int x = c0; x < c1; ++x) pm1[x] = px::sanitize(m1[x]);
-    for (int x = c0; x < c1; ++x) pm2[x] = px::sanitizePositive(m2[x], 1e32f);
-    for (int x = c0; x < c1; ++x) pl[x] = px::luminance(r[x], g[x], b[x]);
+    for (int g = 0; g < int(sig.size()); ++g) {
+        for (int c = 0; c < 3; ++c) {
+            const float* src = sig[size_t(g)].color->row(c, y);
+            float* dst = P[plane(g, SignalPlane(R + c))] + o;
+            for (int x = c0; x < c1; ++x) dst[x] = px::sanitize(src[x]);
+        }
+        const float* m1 = sig[size_t(g)].moments->row(0, y);
+        const float* m2 = sig[size_t(g)].moments->row(1, y);
+        float *pm1 = P[plane(g, M1)] + o, *pm2 = P[plane(g, M2)] + o, *pl = P[plane(g, L)] + o;
+        const float *r = P[plane(g, R)] + o, *gr = P[plane(g, G)] + o, *b = P[plane(g, B)] + o;
+        for (int x = c0; x < c1; ++x) pm1[x] = px::sanitize(m1[x]);
+        for (int x = c0; x < c1; ++x) pm2[x] = px::sanitizePositive(m2[x], 1e32f);
+        for (int x = c0; x < c1; ++x) pl[x] = px::luminance(r[x], gr[x], b[x]);
+    }
 }
 
 /// The same estimate for the lanes of one vector at (x0.., y), all taps inside the row range
-/// [x0 - 3, x0 + lanes + 3), from the band's prepared planes (row y at (y - base) * width).
-/// Lanes outside `need` keep the pass-through values already stored.
-void estimateBlock(const Inputs& in, float* const* P, int base, int x0, int y, VF hl, MF need,
-                   float* oc[3], float* ov) {
+/// [x0 - 3, x0 + lanes + 3), from the band's prepared planes (row y at (y - base) * width), for
+/// S of the signals, sig[which[0]] .. sig[which[S - 1]], with the same weights (S = 2 only
+/// without a luminance term). Signal g's lanes outside need[g] keep the pass-through values
+/// already stored.
+template <int S>
+void estimateBlock(const Inputs& in, std::span<const Signal> sig, const int* which, float* const* P,
+                   int base, int x0, int y, const VF* hl, const MF* need) {
     const DF d;
     const DI di;
     const int w = in.w, h = in.h;
@@ -135,7 +163,8 @@ void estimateBlock(const Inputs& in, float* const* P, int base, int x0, int y, V
         return hn::LoadU(d, P[plane] + size_t(yq - base) * stride + size_t(x0 + dx));
     };
     const bool u = y > 0, dn = y + 1 < h;
-    const VF zp = ld(Z, 0, y), lp = ld(L, 0, y);
+    const bool lumTerm = S == 1 && in.invSigmaL > 0.f;
+    const VF zp = ld(Z, 0, y), lp = lumTerm ? ld(plane(which[0], L), 0, y) : hn::Zero(d);
     const VF gx = simd::minAbsDiff(ld(Z, -1, y), zp, ld(Z, 1, y), true, true);
     const VF gy = simd::minAbsDiff(u ? ld(Z, 0, y - 1) : zp, zp, dn ? ld(Z, 0, y + 1) : zp, u, dn);
     const VF npx = ld(NX, 0, y), npy = ld(NY, 0, y), npz = ld(NZ, 0, y);
@@ -145,7 +174,8 @@ void estimateBlock(const Inputs& in, float* const* P, int base, int x0, int y, V
     const VF epsZ = hn::MulAdd(hn::Set(d, 1e-5f), zp, hn::Set(d, 1e-8f));
     const VF minDot = hn::Set(d, 1e-30f), one = hn::Set(d, 1.f), zero = hn::Zero(d);
     const int intPower = simd::integerExponent(in.sigmaN);
-    VF sw = zero, sr = zero, sg = zero, sb = zero, m1 = zero, m2 = zero;
+    VF sw = zero, sr[S], sg[S], sb[S], m1[S], m2[S];
+    for (int g = 0; g < S; ++g) sr[g] = sg[g] = sb[g] = m1[g] = m2[g] = zero;
     for (int j = -kRadius; j <= kRadius; ++j) {
         const int yq = y + j;
         if (yq < 0 || yq >= h) continue;
@@ -154,12 +184,16 @@ void estimateBlock(const Inputs& in, float* const* P, int base, int x0, int y, V
             VF wt = one;
             if (i != 0 || j != 0) {
                 // Same edge-stopping functions as A-Trous (SVGF eq. 3-4), luminance on the raw
-                // difference (no variance yet: that is what we estimate).
+                // difference (no variance yet: that is what we estimate). Without a luminance
+                // term el is +0 and adds nothing: a pair leaves it out.
                 const VF denom =
                     hn::MulAdd(sigmaZ, hn::Abs(hn::MulAdd(gx, hn::Set(d, float(i)), gyj)), epsZ);
                 const VF ez = hn::Div(hn::Abs(hn::Sub(zp, ld(Z, i, yq))), denom);
-                const VF el = hn::Mul(hn::Abs(hn::Sub(lp, ld(L, i, yq))), invSigmaL);
-                VF e = hn::Mul(hn::Add(ez, el), negLog2e);
+                VF e = ez;
+                if (lumTerm)
+                    e = hn::Add(ez, hn::Mul(hn::Abs(hn::Sub(lp, ld(plane(which[0], L), i, yq))),
+                                            invSigmaL));
+                e = hn::Mul(e, negLog2e);
                 VF wn = one;
                 auto keep = hn::Eq(one, one);
                 if (in.sigmaN > 0.f) {
@@ -180,42 +214,51 @@ void estimateBlock(const Inputs& in, float* const* P, int base, int x0, int y, V
                 wt = hn::IfThenElseZero(keep, hn::Mul(wn, simd::fastExp2(e)));
             }
             sw = hn::Add(sw, wt);
-            sr = hn::MulAdd(wt, ld(R, i, yq), sr);
-            sg = hn::MulAdd(wt, ld(G, i, yq), sg);
-            sb = hn::MulAdd(wt, ld(B, i, yq), sb);
-            m1 = hn::MulAdd(wt, ld(M1, i, yq), m1);
-            m2 = hn::MulAdd(wt, ld(M2, i, yq), m2);
+            for (int g = 0; g < S; ++g) {
+                const int k = which[g];
+                sr[g] = hn::MulAdd(wt, ld(plane(k, R), i, yq), sr[g]);
+                sg[g] = hn::MulAdd(wt, ld(plane(k, G), i, yq), sg[g]);
+                sb[g] = hn::MulAdd(wt, ld(plane(k, B), i, yq), sb[g]);
+                m1[g] = hn::MulAdd(wt, ld(plane(k, M1), i, yq), m1[g]);
+                m2[g] = hn::MulAdd(wt, ld(plane(k, M2), i, yq), m2[g]);
+            }
         }
     }
     const VF inv = hn::Div(one, sw);  // sw >= 1 (centre)
-    const VF mean = hn::Mul(m1, inv);
-    const VF var = hn::Max(zero, hn::NegMulAdd(mean, mean, hn::Mul(m2, inv)));
-    // Boost: few samples underestimate the variance (Falcor: 4 / historyLength).
-    const VF boost = hn::Div(hn::Set(d, 4.f), hn::Max(hl, one));
-    const VF acc[3] = {sr, sg, sb};
-    for (int c = 0; c < 3; ++c) {
-        float* p = oc[c] + x0;
-        hn::StoreU(hn::IfThenElse(need, hn::Mul(acc[c], inv), hn::LoadU(d, p)), d, p);
-    }
-    if (ov) {
-        float* p = ov + x0;
-        hn::StoreU(hn::IfThenElse(need, hn::Mul(var, boost), hn::LoadU(d, p)), d, p);
+    for (int g = 0; g < S; ++g) {
+        const Signal& sg_ = sig[size_t(which[g])];
+        const VF mean = hn::Mul(m1[g], inv);
+        const VF var = hn::Max(zero, hn::NegMulAdd(mean, mean, hn::Mul(m2[g], inv)));
+        // Boost: few samples underestimate the variance (Falcor: 4 / historyLength).
+        const VF boost = hn::Div(hn::Set(d, 4.f), hn::Max(hl[which[g]], one));
+        const VF acc[3] = {sr[g], sg[g], sb[g]};
+        for (int c = 0; c < 3; ++c) {
+            float* p = sg_.outC->row(c, y) + x0;
+            hn::StoreU(hn::IfThenElse(need[which[g]], hn::Mul(acc[c], inv), hn::LoadU(d, p)), d, p);
+        }
+        if (sg_.outV) {
+            float* p = sg_.outV->row(0, y) + x0;
+            hn::StoreU(hn::IfThenElse(need[which[g]], hn::Mul(var, boost), hn::LoadU(d, p)), d, p);
+        }
     }
 }
 
-/// The fast path (everything but `exact`) for this target.
-void estimate(FrameContext& ctx, const Inputs& in, const ImageView& outC, const ImageView* outV,
-              float minHist, std::span<float* const> idle) {
+/// The fast path (everything but `exact`) for this target, for one signal or a pair with the
+/// same weights (VarianceEstimationPass::executeFused): each pixel's estimate is the one the
+/// signal would get alone, to the bit.
+void estimate(FrameContext& ctx, const Inputs& in, std::span<const Signal> sig,
+              std::span<float* const> idle) {
     ScratchArena arena(idle, ctx.extent.pixels());  // scratch from idle planes where they suffice
     const DF d;
     const int n = int(hn::Lanes(d));
-    const int w = in.w;
+    const int w = in.w, S = int(sig.size());
     // Bands of rows, each with private scratch for its prepared rows (ScratchPool). The rows are
     // split into blocks of one vector (the vector path's pixels x = 3 + k n .. 3 + (k + 1) n);
-    // only the columns of blocks holding a pixel with a short history are prepared, which in
-    // steady state is a few percent (disocclusions), not every band as soon as one pixel of it
-    // is short (a pan disoccludes a column at the image's edge in every band). Which pixels
-    // take which path depends only on the width, never on the thread count or the banding.
+    // only the columns of blocks holding a pixel with a short history (in any signal) are
+    // prepared, which in steady state is a few percent (disocclusions), not every band as soon
+    // as one pixel of it is short (a pan disoccludes a column at the image's edge in every
+    // band). Which pixels take which path depends only on the width, never on the thread count
+    // or the banding.
     constexpr int kBand = 32;
     const int bands = (in.h + kBand - 1) / kBand;
     const size_t bandPixels = size_t(std::min(in.h, kBand + 2 * kRadius)) * size_t(w);
@@ -230,57 +273,62 @@ void estimate(FrameContext& ctx, const Inputs& in, const ImageView& outC, const 
                 const int y0 = i * kBand, y1 = std::min(in.h, y0 + kBand);
                 std::fill(need.begin(), need.end(), uint8_t(0));
                 bool anyBlock = false, anyScalar = false;
-                const VF minH = hn::Set(d, minHist);
-                for (int y = y0; y < y1; ++y) {
-                    float* oc[3] = {outC.row(0, y), outC.row(1, y), outC.row(2, y)};
-                    const float* hrow = in.hist->row(0, y);
-                    // Everywhere first: the temporal estimate passes through (sanitised).
-                    for (int c = 0; c < 3; ++c) {
-                        const float* src = in.color->row(c, y);
-                        for (int x = 0; x < w; ++x) oc[c][x] = px::sanitize(src[x]);
-                    }
-                    if (outV) {
-                        const float* src = in.var->row(0, y);
-                        float* ov = outV->row(0, y);
-                        for (int x = 0; x < w; ++x) ov[x] = px::sanitizePositive(src[x], 1e32f);
-                    }
-                    auto isShort = [&](int x) {
-                        return !(px::sanitizePositive(hrow[x], 1e6f) >= minHist);
-                    };
-                    for (int x = 0; x < std::min(kRadius, w); ++x) anyScalar |= isShort(x);
-                    for (int x = scalarFrom; x < w; ++x) anyScalar |= isShort(x);
-                    for (int k = 0; k < blocks; ++k) {
-                        const VF hl =
-                            simd::sanitizePositive(hn::LoadU(d, hrow + kRadius + k * n), 1e6f);
-                        const bool s = !hn::AllFalse(d, hn::Lt(hl, minH));
-                        need[size_t(k)] |= uint8_t(s);
-                        anyBlock |= s;
+                for (const Signal& s : sig) {
+                    const VF minH = hn::Set(d, s.minHist);
+                    for (int y = y0; y < y1; ++y) {
+                        float* oc[3] = {s.outC->row(0, y), s.outC->row(1, y), s.outC->row(2, y)};
+                        const float* hrow = s.hist->row(0, y);
+                        // Everywhere first: the temporal estimate passes through (sanitised).
+                        for (int c = 0; c < 3; ++c) {
+                            const float* src = s.color->row(c, y);
+                            for (int x = 0; x < w; ++x) oc[c][x] = px::sanitize(src[x]);
+                        }
+                        if (s.outV) {
+                            const float* src = s.var->row(0, y);
+                            float* ov = s.outV->row(0, y);
+                            for (int x = 0; x < w; ++x) ov[x] = px::sanitizePositive(src[x], 1e32f);
+                        }
+                        auto isShort = [&](int x) {
+                            return !(px::sanitizePositive(hrow[x], 1e6f) >= s.minHist);
+                        };
+                        for (int x = 0; x < std::min(kRadius, w); ++x) anyScalar |= isShort(x);
+                        for (int x = scalarFrom; x < w; ++x) anyScalar |= isShort(x);
+                        for (int k = 0; k < blocks; ++k) {
+                            const VF hl =
+                                simd::sanitizePositive(hn::LoadU(d, hrow + kRadius + k * n), 1e6f);
+                            const bool sh = !hn::AllFalse(d, hn::Lt(hl, minH));
+                            need[size_t(k)] |= uint8_t(sh);
+                            anyBlock |= sh;
+                        }
                     }
                 }
                 if (anyScalar) {  // border pixels read the inputs directly
-                    for (int y = y0; y < y1; ++y) {
-                        float* oc[3] = {outC.row(0, y), outC.row(1, y), outC.row(2, y)};
-                        float* ov = outV ? outV->row(0, y) : nullptr;
-                        const float* hrow = in.hist->row(0, y);
-                        auto scalarAt = [&](int x) {
-                            const float hl = px::sanitizePositive(hrow[x], 1e6f);
-                            if (hl >= minHist) return;
-                            float c3[3], v;
-                            estimatePixel(in, x, y, hl, c3, &v);
-                            for (int c = 0; c < 3; ++c) oc[c][x] = c3[c];
-                            if (ov) ov[x] = v;
-                        };
-                        for (int x = 0; x < std::min(kRadius, w); ++x) scalarAt(x);
-                        for (int x = std::max(scalarFrom, kRadius); x < w; ++x) scalarAt(x);
-                    }
+                    for (const Signal& s : sig)
+                        for (int y = y0; y < y1; ++y) {
+                            float* oc[3] = {s.outC->row(0, y), s.outC->row(1, y),
+                                            s.outC->row(2, y)};
+                            float* ov = s.outV ? s.outV->row(0, y) : nullptr;
+                            const float* hrow = s.hist->row(0, y);
+                            auto scalarAt = [&](int x) {
+                                const float hl = px::sanitizePositive(hrow[x], 1e6f);
+                                if (hl >= s.minHist) return;
+                                float c3[3], v;
+                                estimatePixel(in, s, x, y, hl, c3, &v);
+                                for (int c = 0; c < 3; ++c) oc[c][x] = c3[c];
+                                if (ov) ov[x] = v;
+                            };
+                            for (int x = 0; x < std::min(kRadius, w); ++x) scalarAt(x);
+                            for (int x = std::max(scalarFrom, kRadius); x < w; ++x) scalarAt(x);
+                        }
                 }
                 if (!anyBlock) continue;
                 // The vector path: prepare the needed blocks' columns (with the taps' reach of
                 // 3 on either side) for the band's rows and halo, then estimate block by block.
                 const int base = std::max(0, y0 - kRadius), p1 = std::min(in.h, y1 + kRadius);
-                auto lease = arena.acquire(kPlaneCount, bandPixels);
-                float* P[kPlaneCount];
-                for (int k = 0; k < kPlaneCount; ++k) P[k] = lease[size_t(k)];
+                auto lease = arena.acquire(size_t(kGeometryPlanes + kSignalPlanes * S), bandPixels);
+                float* P[kGeometryPlanes + 2 * kSignalPlanes];
+                for (int k = 0; k < kGeometryPlanes + kSignalPlanes * S; ++k)
+                    P[k] = lease[size_t(k)];
                 for (int k0 = 0; k0 < blocks;) {
                     if (!need[size_t(k0)]) {
                         ++k0;
@@ -289,23 +337,32 @@ void estimate(FrameContext& ctx, const Inputs& in, const ImageView& outC, const 
                     int k1 = k0 + 1;
                     while (k1 < blocks && need[size_t(k1)]) ++k1;
                     for (int y = base; y < p1; ++y)
-                        prepareRow(in, y, P, size_t(y - base) * size_t(w), k0 * n,
+                        prepareRow(in, sig, y, P, size_t(y - base) * size_t(w), k0 * n,
                                    k1 * n + 2 * kRadius);
                     k0 = k1;
                 }
-                for (int y = y0; y < y1; ++y) {
-                    float* oc[3] = {outC.row(0, y), outC.row(1, y), outC.row(2, y)};
-                    float* ov = outV ? outV->row(0, y) : nullptr;
-                    const float* hrow = in.hist->row(0, y);
+                for (int y = y0; y < y1; ++y)
                     for (int k = 0; k < blocks; ++k) {
                         if (!need[size_t(k)]) continue;
                         const int x = kRadius + k * n;
-                        const VF hl = simd::sanitizePositive(hn::LoadU(d, hrow + x), 1e6f);
-                        const MF needLanes = hn::Lt(hl, minH);
-                        if (hn::AllFalse(d, needLanes)) continue;
-                        estimateBlock(in, P, base, x, y, hl, needLanes, oc, ov);
+                        VF hl[2];
+                        MF needLanes[2];
+                        int which[2], count = 0;  // the signals with a short pixel here
+                        for (int g = 0; g < S; ++g) {
+                            const Signal& s = sig[size_t(g)];
+                            hl[g] =
+                                simd::sanitizePositive(hn::LoadU(d, s.hist->row(0, y) + x), 1e6f);
+                            needLanes[g] = hn::Lt(hl[g], hn::Set(d, s.minHist));
+                            if (!hn::AllFalse(d, needLanes[g])) which[count++] = g;
+                        }
+                        // Both signals weighed at once only where both need it: a pair's
+                        // short pixels overlap only in part (anti-lag shortens each chain's
+                        // history on its own).
+                        if (count == 2)
+                            estimateBlock<2>(in, sig, which, P, base, x, y, hl, needLanes);
+                        else if (count == 1)
+                            estimateBlock<1>(in, sig, which, P, base, x, y, hl, needLanes);
                     }
-                }
             }
         },
         1);
@@ -338,6 +395,7 @@ PassDesc VarianceEstimationPass::describe() {
         .optionalInput("objectId", Format::Int32, "object id: taps on another object get weight 0")
         .output("color", Format::Float3, "illumination (filtered where the history is short)")
         .output("variance", Format::Float, "luminance variance")
+        .fuseOn({"depth", "normal", "objectId"})
         .paramFloat("sigmaZ", 1.0, 0.0, 1e6, "depth weight tolerance in units of the depth slope")
         .paramFloat("sigmaN", 128.0, 0.0, 1e4, "normal weight exponent")
         .paramFloat("sigmaL", 0.0, 0.0, 1e6,
@@ -361,27 +419,72 @@ VarianceEstimationPass::VarianceEstimationPass(const ParamValues& p)
       minHist_(p.getFloat("minHistoryLength")),
       exact_(p.getBool("exact")) {}
 
+namespace {
+Inputs sharedInputs(const FrameContext& ctx, PassIO& io, float sigmaZ, float sigmaN, float sigmaL) {
+    return {ctx.extent.width,
+            ctx.extent.height,
+            &io.input("depth"),
+            &io.input("normal"),
+            io.hasInput("objectId") ? io.input("objectId").ints() : nullptr,
+            sigmaZ,
+            sigmaN,
+            sigmaL > 0.f ? 1.f / std::max(sigmaL, reference::kMinSigmaL) : 0.f};
+}
+
+Signal signalOf(PassIO& io, float minHist) {
+    return {&io.input("color"),
+            &io.input("moments"),
+            &io.input("historyLength"),
+            &io.input("variance"),
+            &io.output("color"),
+            io.hasOutput("variance") ? &io.output("variance") : nullptr,
+            minHist};
+}
+}  // namespace
+
+std::string VarianceEstimationPass::fusionKey() const {
+    // A pair shares each tap's weight, which without a luminance term is the geometry's alone.
+    if (exact_ || sigmaL_ > 0.f) return {};
+    char key[96];
+    std::snprintf(key, sizeof key, "sigmaZ=%a sigmaN=%a", double(sigmaZ_), double(sigmaN_));
+    return key;
+}
+
+void VarianceEstimationPass::executeFused(FrameContext& ctx, std::span<Pass* const> passes,
+                                          std::span<PassIO* const> ios) {
+    // Pairs weigh each tap once for both signals (the split's diffuse and specular chains);
+    // an odd one out runs alone.
+    size_t i = 0;
+    for (; i + 1 < ios.size(); i += 2) {
+        PassIO &a = *ios[i], &b = *ios[i + 1];
+        const bool sameGeometry =
+            a.input("depth").planes == b.input("depth").planes &&
+            a.input("normal").planes == b.input("normal").planes &&
+            a.hasInput("objectId") == b.hasInput("objectId") &&
+            (!a.hasInput("objectId") || a.input("objectId").planes == b.input("objectId").planes);
+        if (!sameGeometry) {
+            passes[i]->execute(ctx, a);
+            passes[i + 1]->execute(ctx, b);
+            continue;
+        }
+        const Inputs in = sharedInputs(ctx, a, sigmaZ_, sigmaN_, sigmaL_);
+        const Signal sig[2] = {
+            signalOf(a, static_cast<const VarianceEstimationPass&>(*passes[i]).minHist_),
+            signalOf(b, static_cast<const VarianceEstimationPass&>(*passes[i + 1]).minHist_)};
+        HWY_DYNAMIC_DISPATCH(estimate)(ctx, in, std::span<const Signal>(sig), a.idlePlanes());
+    }
+    if (i < ios.size()) passes[i]->execute(ctx, *ios[i]);
+}
+
 void VarianceEstimationPass::execute(FrameContext& ctx, PassIO& io) {
-    Inputs in{ctx.extent.width,
-              ctx.extent.height,
-              &io.input("color"),
-              &io.input("moments"),
-              &io.input("historyLength"),
-              &io.input("variance"),
-              &io.input("depth"),
-              &io.input("normal"),
-              io.hasInput("objectId") ? io.input("objectId").ints() : nullptr,
-              sigmaZ_,
-              sigmaN_,
-              sigmaL_ > 0.f ? 1.f / std::max(sigmaL_, reference::kMinSigmaL) : 0.f};
-    const ImageView& outC = io.output("color");
-    const ImageView* outV = io.hasOutput("variance") ? &io.output("variance") : nullptr;
+    const Inputs in = sharedInputs(ctx, io, sigmaZ_, sigmaN_, sigmaL_);
+    const Signal sig = signalOf(io, minHist_);
     if (exact_) {
         const reference::VarianceInputs ref{
-            in.color,
-            in.moments,
-            in.hist,
-            in.var,
+            sig.color,
+            sig.moments,
+            sig.hist,
+            sig.var,
             in.depth,
             in.normal,
             io.hasInput("objectId") ? &io.input("objectId") : nullptr,
@@ -389,11 +492,11 @@ void VarianceEstimationPass::execute(FrameContext& ctx, PassIO& io) {
             sigmaN_,
             sigmaL_,
             minHist_};
-        ctx.parallelRows(
-            in.h, [&](int y0, int y1) { reference::varianceEstimation(ref, outC, outV, y0, y1); });
+        ctx.parallelRows(in.h, [&](int y0, int y1) {
+            reference::varianceEstimation(ref, *sig.outC, sig.outV, y0, y1);
+        });
         return;
     }
-
-    HWY_DYNAMIC_DISPATCH(estimate)(ctx, in, outC, outV, minHist_, io.idlePlanes());
+    HWY_DYNAMIC_DISPATCH(estimate)(ctx, in, std::span<const Signal>(&sig, 1), io.idlePlanes());
 }
 #endif  // HWY_ONCE

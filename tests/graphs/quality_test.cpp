@@ -233,12 +233,12 @@ TEST(SvgfFusion, SplitChainsFusedGiveTheSameOutput) {
     std::vector<std::vector<float>> a, b;
     const RunResult fused = runGraph("svgf.json", in, ref, frames, false, {}, true, &a, true);
     const RunResult apart = runGraph("svgf.json", in, ref, frames, false, {}, true, &b, false);
-    // atrous0 to atrous2. The specular chain runs 3 iterations: its atrous2 is its last, whose
-    // variance nobody reads, and pairs with diffuse's all the same (A-Trous fuses members whose
-    // outputs differ); diffuse's atrous3 and atrous4 run alone.
-    ASSERT_EQ(fused.report.fused.size(), 3u);
-    for (int i = 0; i < 3; ++i) {
-        const std::string n = "atrous" + std::to_string(i);
+    // Variance estimation, then atrous0 to atrous2. The specular chain runs 3 iterations: its
+    // atrous2 is its last, whose variance nobody reads, and pairs with diffuse's all the same
+    // (A-Trous fuses members whose outputs differ); diffuse's atrous3 and atrous4 run alone.
+    ASSERT_EQ(fused.report.fused.size(), 4u);
+    for (int i = 0; i < 4; ++i) {
+        const std::string n = i == 0 ? "variance" : "atrous" + std::to_string(i - 1);
         EXPECT_EQ(fused.report.fused[size_t(i)],
                   (std::vector<std::string>{"diffuse." + n, "specular." + n}));
     }

@@ -277,3 +277,85 @@ TEST(VarianceEstimation, ExactParameterRunsThePlainPath) {
     EXPECT_TRUE(identical(h.out("color"), refC));
     EXPECT_TRUE(identical(h.out("variance"), refV));
 }
+
+// --- Two chains on one G-buffer run as a fused pair (executeFused): each tap weighed once for
+// both. Each must get, to the bit, what it gets alone, whether its short pixels coincide with
+// the other's or not, with its own minHistoryLength, and with the variance output unconsumed.
+namespace {
+struct PairCase {
+    const char* what;
+    int width;
+    bool extreme, sparse;
+    bool secondVariance = true;  ///< whether the second pass's variance output is consumed
+    double secondMinHistory = 4.0;
+};
+
+void expectFusedPairMatchesSeparatePasses(const PairCase& c) {
+    SCOPED_TRACE(c.what);
+    const EqCase e0 = equivalenceCase(c.width, 70, 21, c.extreme, c.sparse);
+    const EqCase e1 = equivalenceCase(c.width, 70, 22, c.extreme, !c.sparse);  // its signal only
+    auto make = [&](const EqCase& e, double minHistory, bool variance) {
+        auto h = PassHarness::make<VarianceEstimationPass>(e0.g.color.extent(),
+                                                           {{"minHistoryLength", minHistory}}, 2);
+        h.bind("color", e.g.color);
+        h.bind("moments", e.moments);
+        h.bind("historyLength", e.length);
+        h.bind("variance", e.var);
+        h.bind("depth", e0.g.depth);  // the same images: a fused pair shares them
+        h.bind("normal", e0.g.normal);
+        h.bind("objectId", e0.g.ids);
+        if (!variance) h.useOutputs({"color"});
+        return h;
+    };
+    PassHarness a = make(e0, 4.0, true), b = make(e1, c.secondMinHistory, c.secondVariance);
+    ASSERT_FALSE(a.pass().fusionKey().empty());
+    ASSERT_EQ(a.pass().fusionKey(), b.pass().fusionKey());
+    a.run();
+    b.run();
+    const Image aColor = clone(a.out("color")), bColor = clone(b.out("color")),
+                aVar = clone(a.out("variance"));
+    const std::optional<Image> bVar =
+        c.secondVariance ? std::optional<Image>(clone(b.out("variance"))) : std::nullopt;
+    for (PassHarness* h : {&a, &b})  // the fused run must write every pixel again
+        for (const char* port : {"color", "variance"})
+            if (h->hasOutput(port)) {
+                const ImageView& o = h->output(port);
+                for (int ch = 0; ch < o.channels(); ++ch)
+                    std::fill_n(o.planes[size_t(ch)], o.pixels(), NAN);
+            }
+    Pass* passes[2] = {&a.pass(), &b.pass()};
+    PassIO* ios[2] = {&a, &b};
+    a.pass().executeFused(a.ctx, passes, ios);
+    EXPECT_TRUE(identical(a.out("color"), aColor));
+    EXPECT_TRUE(identical(a.out("variance"), aVar));
+    EXPECT_TRUE(identical(b.out("color"), bColor));
+    if (bVar) {
+        EXPECT_TRUE(identical(b.out("variance"), *bVar));
+    }
+}
+}  // namespace
+
+TEST_P(VarianceEveryTarget, FusedPairGivesEachPassItsOwnResultToTheBit) {
+    const PairCase cases[] = {
+        {"short pixels in blobs beside isolated ones", 157, false, false},
+        {"isolated short pixels beside blobs", 157, false, true},
+        {"extreme inputs", 157, true, false},
+        {"narrower than a vector", 7, false, false},
+        {"second variance unconsumed", 157, false, false, false},
+        {"second with its own minHistoryLength", 157, false, false, true, 2.5},
+    };
+    for (const PairCase& c : cases) expectFusedPairMatchesSeparatePasses(c);
+}
+
+TEST(VarianceEstimation, PassesFuseOnlyWithTheSameWeights) {
+    auto key = [](std::map<std::string, ParamValue> p) {
+        return PassHarness::make<VarianceEstimationPass>({8, 8}, p).pass().fusionKey();
+    };
+    const std::string base = key({});
+    EXPECT_FALSE(base.empty());
+    EXPECT_EQ(base, key({{"minHistoryLength", 2.0}}));  // per signal
+    EXPECT_NE(base, key({{"sigmaZ", 2.0}}));
+    EXPECT_NE(base, key({{"sigmaN", 64.0}}));
+    EXPECT_TRUE(key({{"sigmaL", 10.0}}).empty());  // a luminance term: weights per signal
+    EXPECT_TRUE(key({{"exact", true}}).empty());
+}
