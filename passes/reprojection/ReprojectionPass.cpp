@@ -346,23 +346,70 @@ struct RowTerms {
 /// or take them from sharedTaps.
 enum class TapMode { Test, Record, Shared };
 
+/// How a vector's taps are loaded: Contig, every lane with the same integer offset (plain
+/// loads); Window, the lanes' offsets within one row, or two adjacent rows, and 14 columns of
+/// each other (AVX-512 only: two loads and a two-table permute per row instead of a gather,
+/// the same values); Gather, anything else.
+enum class Load { Contig, Window, Gather };
+
+/// Window: the lanes' taps in the 32 elements from `base` (tap (-1, -1) of the leftmost lane
+/// offset) on, lane l's tap (k, j) at perm[l] + k + 1 of row j (+ 1 where `lower`).
+struct WindowTerms {
+    VI perm;
+    MF lower;  ///< lanes whose row offset is the larger of two (twoRows)
+    bool twoRows;
+};
+
+#if HWY_TARGET <= HWY_AVX3
+constexpr bool kWindowLoads = true;
+inline VF permute2(VF a, VI idx, VF b) {
+    return VF{_mm512_permutex2var_ps(a.raw, idx.raw, b.raw)};
+}
+inline VI permute2(VI a, VI idx, VI b) {
+    return VI{_mm512_permutex2var_epi32(a.raw, idx.raw, b.raw)};
+}
+#else
+constexpr bool kWindowLoads = false;
+template <class V>
+V permute2(V a, VI, V) {
+    return a;  // never called: kWindowLoads
+}
+#endif
+
 // Geo: the depth and normal tests run (geometryTests); without them only the object id is
 // tested, which is what the tests with infinite thresholds give bit for bit (every distance
 // they compare is finite).
-template <bool Contig, bool CR, bool Geo, TapMode M>
-HWY_INLINE void tapVector(const Sources& S, const RowTerms& R, int x, ptrdiff_t base, VI idx) {
+template <Load L, bool CR, bool Geo, TapMode M>
+HWY_INLINE void tapVector(const Sources& S, const RowTerms& R, int x, ptrdiff_t base, VI idx,
+                          const WindowTerms& win) {
     const DF d;
     const DI di;
     const ptrdiff_t w = S.w;
+    auto window = [&](auto dtag, const auto* p, int k, int j) HWY_ATTR {
+        const auto* row = p + base + ptrdiff_t(j + 1) * w;
+        const VI ix = hn::Add(win.perm, hn::Set(di, k + 1));
+        auto v = permute2(hn::LoadU(dtag, row), ix, hn::LoadU(dtag, row + hn::Lanes(dtag)));
+        if (win.twoRows) {
+            row += w;
+            const auto v2 =
+                permute2(hn::LoadU(dtag, row), ix, hn::LoadU(dtag, row + hn::Lanes(dtag)));
+            v = hn::IfThenElse(hn::RebindMask(dtag, win.lower), v2, v);
+        }
+        return v;
+    };
     auto ld = [&](const float* p, int k, int j) HWY_ATTR {
-        if constexpr (Contig)
+        if constexpr (L == Load::Contig)
             return hn::LoadU(d, p + base + ptrdiff_t(j) * w + k);
+        else if constexpr (L == Load::Window)
+            return window(d, p, k, j);
         else
             return hn::GatherIndex(d, p, hn::Add(idx, hn::Set(di, int32_t(j * w + k))));
     };
     auto ldId = [&](int k, int j) HWY_ATTR {
-        if constexpr (Contig)
+        if constexpr (L == Load::Contig)
             return hn::LoadU(di, S.pIds + base + ptrdiff_t(j) * w + k);
+        else if constexpr (L == Load::Window)
+            return window(di, S.pIds, k, j);
         else
             return hn::GatherIndex(di, S.pIds, hn::Add(idx, hn::Set(di, int32_t(j * w + k))));
     };
@@ -522,22 +569,45 @@ void tapRow(const Sources& S, const RowTerms& R, int y, int a, int b, const int3
     // footprint, -1..2 rows and columns, stays inside the image: w, h >= 4 when any lane is
     // fast with Catmull-Rom, >= 2 with bilinear).
     const VI safe = hn::Set(di, CR ? int32_t(w + 1) : 0);
+    const WindowTerms noWindow{zeroI, hn::FirstN(d, 0), false};
+    const ptrdiff_t planeSize = ptrdiff_t(w) * S.h;
     for (int xs = a;; xs += n) {
         const int x = std::min(xs, b - n);
         const MF fast = hn::RebindMask(d, hn::Ne(hn::LoadU(di, rFast + x), zeroI));
         if (!hn::AllFalse(d, fast)) {
             const VI dx = hn::LoadU(di, rDx + x), dy = hn::LoadU(di, rDy + x);
             const int dx0 = rDx[x], dy0 = rDy[x];
-            if (hn::AllTrue(d, fast) && hn::AllTrue(di, hn::And(hn::Eq(dx, hn::Set(di, dx0)),
-                                                                hn::Eq(dy, hn::Set(di, dy0))))) {
+            const bool allFast = hn::AllTrue(d, fast);
+            if (allFast && hn::AllTrue(di, hn::And(hn::Eq(dx, hn::Set(di, dx0)),
+                                                   hn::Eq(dy, hn::Set(di, dy0))))) {
                 const ptrdiff_t base = ptrdiff_t(y + dy0) * w + ptrdiff_t(x + dx0);
-                tapVector<true, CR, Geo, M>(S, R, x, base, zeroI);
-            } else {
-                const VI idx = hn::Add(hn::Mul(hn::Add(dy, hn::Set(di, y)), hn::Set(di, w)),
-                                       hn::Add(hn::Iota(di, x), dx));
-                tapVector<false, CR, Geo, M>(S, R, x, 0,
-                                             hn::IfThenElse(hn::RebindMask(di, fast), idx, safe));
+                tapVector<Load::Contig, CR, Geo, M>(S, R, x, base, zeroI, noWindow);
+                if (x == b - n) break;
+                continue;
             }
+            if constexpr (kWindowLoads) {
+                // A camera's motion varies smoothly: a vector's offsets mostly span a column or
+                // two of one row or two adjacent rows. The window spans rows dyMin - 1 .. dyMax
+                // + 2 and 32 columns from dxMin - 1, all inside the plane.
+                const int dxMin = hn::GetLane(hn::MinOfLanes(di, dx));
+                const int dxMax = hn::GetLane(hn::MaxOfLanes(di, dx));
+                const int dyMin = hn::GetLane(hn::MinOfLanes(di, dy));
+                const int dyMax = hn::GetLane(hn::MaxOfLanes(di, dy));
+                const ptrdiff_t base = ptrdiff_t(y + dyMin - 1) * w + ptrdiff_t(x + dxMin - 1);
+                if (allFast && dxMax - dxMin <= n - 3 && dyMax - dyMin <= 1 && base >= 0 &&
+                    base + ptrdiff_t(dyMax - dyMin + 3) * w + 2 * n <= planeSize) {
+                    const WindowTerms win{hn::Add(hn::Iota(di, 0), hn::Sub(dx, hn::Set(di, dxMin))),
+                                          hn::RebindMask(d, hn::Ne(dy, hn::Set(di, dyMin))),
+                                          dyMax != dyMin};
+                    tapVector<Load::Window, CR, Geo, M>(S, R, x, base, zeroI, win);
+                    if (x == b - n) break;
+                    continue;
+                }
+            }
+            const VI idx = hn::Add(hn::Mul(hn::Add(dy, hn::Set(di, y)), hn::Set(di, w)),
+                                   hn::Add(hn::Iota(di, x), dx));
+            tapVector<Load::Gather, CR, Geo, M>(
+                S, R, x, 0, hn::IfThenElse(hn::RebindMask(di, fast), idx, safe), noWindow);
         }
         if (x == b - n) break;
     }
