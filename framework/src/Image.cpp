@@ -5,6 +5,10 @@
 #include <cstdlib>
 #include <new>
 
+#if __has_include(<sys/mman.h>)
+#include <sys/mman.h>
+#endif
+
 namespace kestrel {
 
 void AlignedFree::operator()(float* p) const {
@@ -22,8 +26,17 @@ PlaneStorage allocatePlane(size_t count) {
     // planes read together fall into different sets.
     static std::atomic<unsigned> counter{0};
     const size_t shift = size_t((counter.fetch_add(1, std::memory_order_relaxed) * 7u) % 64u) * 64u;
-    void* p = std::aligned_alloc(64, bytes + shift);
+    // Planes of several megabytes in transparent huge pages where the kernel offers them
+    // (madvise mode): a 1080p graph's first frame otherwise takes ~90,000 page faults, which
+    // measured ~0.4 s of a one-frame run in a VM.
+    constexpr size_t kHuge = size_t(2) << 20;
+    const bool huge = bytes >= 2 * kHuge;
+    const size_t total = huge ? (bytes + shift + kHuge - 1) / kHuge * kHuge : bytes + shift;
+    void* p = std::aligned_alloc(huge ? kHuge : 64, total);
     if (!p) throw std::bad_alloc();
+#ifdef MADV_HUGEPAGE
+    if (huge) madvise(p, total, MADV_HUGEPAGE);  // advice only: failure changes nothing
+#endif
     float* plane = reinterpret_cast<float*>(static_cast<char*>(p) + shift);
     std::fill_n(plane, bytes / sizeof(float), 0.f);
     return PlaneStorage(plane, AlignedFree{shift});
