@@ -253,7 +253,8 @@ void estimate(FrameContext& ctx, const Inputs& in, std::span<const Signal> sig,
     const int n = int(hn::Lanes(d));
     const int w = in.w, S = int(sig.size());
     // Bands of rows, each with private scratch for its prepared rows (ScratchPool). The rows are
-    // split into blocks of one vector (the vector path's pixels x = 3 + k n .. 3 + (k + 1) n);
+    // split into blocks of one vector (the vector path's pixels x = 3 + k n .. 3 + (k + 1) n,
+    // and a last one ending at w - 3);
     // only the columns of blocks holding a pixel with a short history (in any signal) are
     // prepared, which in steady state is a few percent (disocclusions), not every band as soon
     // as one pixel of it is short (a pan disoccludes a column at the image's edge in every
@@ -262,8 +263,14 @@ void estimate(FrameContext& ctx, const Inputs& in, std::span<const Signal> sig,
     constexpr int kBand = 32;
     const int bands = (in.h + kBand - 1) / kBand;
     const size_t bandPixels = size_t(std::min(in.h, kBand + 2 * kRadius)) * size_t(w);
-    const int blocks = w >= 2 * kRadius + n ? (w - 2 * kRadius) / n : 0;
-    const int scalarFrom = kRadius + blocks * n;  // the row's tail: plain scalar code
+    const int whole = w >= 2 * kRadius + n ? (w - 2 * kRadius) / n : 0;
+    // A last block ends at w - kRadius where whole blocks leave a gap (it overlaps the one
+    // before it, whose pixels it computes again to the same values): only the kRadius columns
+    // at either border, whose taps leave the image, take the plain scalar code.
+    const bool tail = whole > 0 && kRadius + whole * n < w - kRadius;
+    const int blocks = whole + int(tail);
+    const int scalarFrom = tail ? w - kRadius : kRadius + whole * n;
+    auto blockX = [&](int k) { return k < whole ? kRadius + k * n : w - kRadius - n; };
     ctx.parallel->forRange(
         0, bands,
         [&](int i0, int i1) {
@@ -295,7 +302,7 @@ void estimate(FrameContext& ctx, const Inputs& in, std::span<const Signal> sig,
                         for (int x = scalarFrom; x < w; ++x) anyScalar |= isShort(x);
                         for (int k = 0; k < blocks; ++k) {
                             const VF hl =
-                                simd::sanitizePositive(hn::LoadU(d, hrow + kRadius + k * n), 1e6f);
+                                simd::sanitizePositive(hn::LoadU(d, hrow + blockX(k)), 1e6f);
                             const bool sh = !hn::AllFalse(d, hn::Lt(hl, minH));
                             need[size_t(k)] |= uint8_t(sh);
                             anyBlock |= sh;
@@ -337,14 +344,14 @@ void estimate(FrameContext& ctx, const Inputs& in, std::span<const Signal> sig,
                     int k1 = k0 + 1;
                     while (k1 < blocks && need[size_t(k1)]) ++k1;
                     for (int y = base; y < p1; ++y)
-                        prepareRow(in, sig, y, P, size_t(y - base) * size_t(w), k0 * n,
-                                   k1 * n + 2 * kRadius);
+                        prepareRow(in, sig, y, P, size_t(y - base) * size_t(w),
+                                   blockX(k0) - kRadius, blockX(k1 - 1) + n + kRadius);
                     k0 = k1;
                 }
                 for (int y = y0; y < y1; ++y)
                     for (int k = 0; k < blocks; ++k) {
                         if (!need[size_t(k)]) continue;
-                        const int x = kRadius + k * n;
+                        const int x = blockX(k);
                         VF hl[2];
                         MF needLanes[2];
                         int which[2], count = 0;  // the signals with a short pixel here
