@@ -94,5 +94,24 @@ TEST(ScratchArena, WithoutIdlePlanesEveryLeaseIsThePools) {
     EXPECT_EQ(arena.lentCount(), 0u);
 }
 
+// Planes of every size, huge-page ones (4 MB and more: 2 MB aligned, advised MADV_HUGEPAGE)
+// included: zero-filled, 64-byte aligned, staggered within a page (successive planes start at
+// different offsets: see allocatePlane), writable to their last value, and freed by their own
+// deleter (the sanitizer stage checks the free).
+TEST(AllocatePlane, EverySizeIsZeroedAlignedStaggeredAndWritable) {
+    for (size_t count : {size_t(1), size_t(1000), size_t(1) << 20, size_t(1920) * 1080 + 7}) {
+        PlaneStorage a = allocatePlane(count), b = allocatePlane(count);
+        for (const PlaneStorage* p : {&a, &b}) {
+            EXPECT_EQ(reinterpret_cast<uintptr_t>(p->get()) % 64, 0u) << count;
+            EXPECT_TRUE(std::all_of(p->get(), p->get() + count, [](float v) { return v == 0.f; }))
+                << count;
+            p->get()[count - 1] = 1.f;
+        }
+        EXPECT_NE(reinterpret_cast<uintptr_t>(a.get()) % 4096,
+                  reinterpret_cast<uintptr_t>(b.get()) % 4096)
+            << count << ": successive planes fall into different cache sets";
+    }
+}
+
 }  // namespace
 }  // namespace kestrel

@@ -4,6 +4,8 @@
 // the pass takes its per-pixel path everywhere). Tolerance: exact (0 ulp, bitwise identical
 // floats including the sign of zero).
 #include <gtest/gtest.h>
+#include <sys/mman.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -12,6 +14,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "../FactResolve.h"
 #include "HwyTargets.h"
@@ -160,6 +163,26 @@ void expectEquivalent(const Frames& f, const Binding& b, const reprojref::Params
     for (const char* port : {"color", "moments", "historyLength", "resampleBlur"}) {
         if (h.hasOutput(port)) {
             EXPECT_TRUE(sameBits(shared.out(port), h.out(port))) << "shared " << port;
+        }
+    }
+
+    // Without a consumer of taps the pass tests without recording (the single chain's and
+    // TAA's mode): the same outputs.
+    auto plain = PassHarness::make<ReprojectionPass>(f.depth.extent(), passParams(p), threads);
+    for (const char* port :
+         {"depth", "normal", "objectId", "motion", "position", "prevDepth", "prevNormal",
+          "prevObjectId", "prevColor", "prevMoments", "prevHistoryLength"})
+        if (h.hasInput(port)) plain.bind(port, h.input(port));
+    plain.useOutputs({"color", "moments", "historyLength", "resampleBlur"});
+    if (p.depthPrecision > 0.f) {
+        svgftest::FactResolve facts(kDepthPrecisionFact, std::to_string(p.depthPrecision));
+        plain.pass().resolve(facts);
+    }
+    if (b.cameras) setScenes(plain.scene, plain.previousScene);
+    plain.run();
+    for (const char* port : {"color", "moments", "historyLength", "resampleBlur"}) {
+        if (h.hasOutput(port)) {
+            EXPECT_TRUE(sameBits(plain.out(port), h.out(port))) << "untracked taps " << port;
         }
     }
 }
@@ -378,4 +401,76 @@ TEST_P(ReprojectionEquivalence, TapsDoNotDependOnTheOutputsConsumed) {
     noColour.useOutputs({"moments", "historyLength", "taps"});
     noColour.run();
     EXPECT_TRUE(sameTaps(all, noColour));
+}
+
+namespace {
+/// Planes that end exactly at a page no access is allowed to (PROT_NONE): a kernel that reads
+/// past a plane's last pixel faults. Each plane has a mapping of its own.
+class GuardedPlanes {
+public:
+    ~GuardedPlanes() {
+        for (auto [p, n] : maps_) munmap(p, n);
+    }
+    /// A copy of `im` whose every plane ends against a guard page.
+    ImageView copy(const Image& im) {
+        ImageView v = im.view();
+        for (int c = 0; c < im.view().channels(); ++c) {
+            const size_t bytes = im.view().pixels() * sizeof(float);
+            const size_t page = size_t(sysconf(_SC_PAGESIZE));
+            const size_t body = (bytes + page - 1) / page * page, total = body + page;
+            void* m =
+                mmap(nullptr, total, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+            if (m == MAP_FAILED) throw std::bad_alloc();
+            maps_.push_back({m, total});
+            char* guard = static_cast<char*>(m) + body;
+            mprotect(guard, page, PROT_NONE);
+            float* plane = reinterpret_cast<float*>(guard - bytes);
+            std::memcpy(plane, im.view().planes[size_t(c)], bytes);
+            v.planes[size_t(c)] = plane;
+        }
+        return v;
+    }
+
+private:
+    std::vector<std::pair<void*, size_t>> maps_;
+};
+}  // namespace
+
+// Vector kernels may load a window wider than the lanes' taps (AVX-512: 32 columns of a row
+// around a vector whose tap offsets differ by up to 13 columns): every read must stay inside
+// the plane. Last frame's planes end against a guard page and the motion points the last rows'
+// taps at the image's bottom right, so a window reaching past the last pixel faults. (The
+// sanitizer stage builds one SIMD target only; this runs on every target the CPU has.)
+TEST_P(ReprojectionEquivalence, WindowLoadsStayInsideThePlanes) {
+    for (int w : {61, 64, 200}) {
+        Frames f = reprojscene::makeFrames(w, 37, 21);
+        for (int y = 0; y < 37; ++y)
+            for (int x = 0; x < w; ++x) {
+                // Offsets varying by a column over a vector, and rows pointing at the last row.
+                f.motion.at(0, x, y) = 1.2f + 0.07f * float(x % 23);
+                f.motion.at(1, x, y) = y >= 30 ? 2.6f - 0.05f * float(x % 17) : 0.4f;
+            }
+        GuardedPlanes guarded;
+        for (bool cr : {false, true}) {
+            auto h = PassHarness::make<ReprojectionPass>(
+                f.depth.extent(), {{"filter", cr ? "catmullrom" : "bilinear"}}, 2);
+            h.bind("depth", f.depth);
+            h.bind("normal", f.normal);
+            h.bind("objectId", f.objectId);
+            h.bind("motion", f.motion);
+            h.bind("prevDepth", guarded.copy(f.prevDepth));
+            h.bind("prevNormal", guarded.copy(f.prevNormal));
+            h.bind("prevObjectId", guarded.copy(f.prevObjectId));
+            h.bind("prevColor", guarded.copy(f.prevColor));
+            h.bind("prevMoments", guarded.copy(f.prevMoments));
+            h.bind("prevHistoryLength", guarded.copy(f.prevHistoryLength));
+            h.run();  // a read past a plane's end faults here
+            reprojref::Params p;
+            p.catmullRom = cr;
+            Binding b;
+            b.position = false;
+            const auto ref = runReference(f, b, nullptr, nullptr, p);
+            EXPECT_TRUE(sameBits(h.out("color"), ref.color)) << "width " << w;
+        }
+    }
 }

@@ -288,6 +288,9 @@ struct PairCase {
     bool extreme, sparse;
     bool secondVariance = true;  ///< whether the second pass's variance output is consumed
     double secondMinHistory = 4.0;
+    double sigmaN = 128.0;  ///< 128: squarings; other values take the power or log2 paths
+    bool ids = true;        ///< objectId bound
+    int idlePlanes = 0;     ///< planes lent as scratch (NaN-filled), as the engine lends them
 };
 
 void expectFusedPairMatchesSeparatePasses(const PairCase& c) {
@@ -295,15 +298,16 @@ void expectFusedPairMatchesSeparatePasses(const PairCase& c) {
     const EqCase e0 = equivalenceCase(c.width, 70, 21, c.extreme, c.sparse);
     const EqCase e1 = equivalenceCase(c.width, 70, 22, c.extreme, !c.sparse);  // its signal only
     auto make = [&](const EqCase& e, double minHistory, bool variance) {
-        auto h = PassHarness::make<VarianceEstimationPass>(e0.g.color.extent(),
-                                                           {{"minHistoryLength", minHistory}}, 2);
+        auto h = PassHarness::make<VarianceEstimationPass>(
+            e0.g.color.extent(), {{"minHistoryLength", minHistory}, {"sigmaN", c.sigmaN}}, 2);
+        if (c.idlePlanes) h.lendIdlePlanes(c.idlePlanes, NAN);
         h.bind("color", e.g.color);
         h.bind("moments", e.moments);
         h.bind("historyLength", e.length);
         h.bind("variance", e.var);
         h.bind("depth", e0.g.depth);  // the same images: a fused pair shares them
         h.bind("normal", e0.g.normal);
-        h.bind("objectId", e0.g.ids);
+        if (c.ids) h.bind("objectId", e0.g.ids);
         if (!variance) h.useOutputs({"color"});
         return h;
     };
@@ -343,6 +347,11 @@ TEST_P(VarianceEveryTarget, FusedPairGivesEachPassItsOwnResultToTheBit) {
         {"narrower than a vector", 7, false, false},
         {"second variance unconsumed", 157, false, false, false},
         {"second with its own minHistoryLength", 157, false, false, true, 2.5},
+        {"a whole exponent not a power of two", 157, false, false, true, 4.0, 100.0},
+        {"a fractional exponent (log2)", 157, false, false, true, 4.0, 64.5},
+        {"no normal term", 157, false, false, true, 4.0, 0.0},
+        {"no object ids", 157, false, false, true, 4.0, 128.0, false},
+        {"scratch in lent idle planes", 157, true, false, true, 4.0, 128.0, true, 20},
     };
     for (const PairCase& c : cases) expectFusedPairMatchesSeparatePasses(c);
 }
