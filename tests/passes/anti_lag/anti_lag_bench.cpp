@@ -7,6 +7,7 @@
 #include <cmath>
 #include <random>
 
+#include "../PassBench.h"
 #include "AntiLagPass.h"
 #include "kestrel/testing/PassHarness.h"
 
@@ -44,20 +45,9 @@ void BM_AntiLag(benchmark::State& state) {
     h.bind("color", in.color);
     h.bind("history", in.history);
     h.bind("historyLength", in.length);
-    h.run();  // allocate the output
-    for (auto _ : state) {
-        h.run();
-        benchmark::DoNotOptimize(h.out("historyLength").channel(0)[0]);
-    }
-    state.counters["Mpx/s"] = benchmark::Counter(double(kW) * kH * double(state.iterations()) / 1e6,
-                                                 benchmark::Counter::kIsRate);
+    passbench::timeRuns(state, h, "historyLength");
 }
-BENCHMARK(BM_AntiLag)
-    ->Arg(1)
-    ->Arg(2)
-    ->ArgName("threads")
-    ->UseRealTime()
-    ->Unit(benchmark::kMillisecond);
+KESTREL_PASS_BENCHMARK(BM_AntiLag);
 
 }  // namespace
 

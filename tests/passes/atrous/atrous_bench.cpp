@@ -4,6 +4,7 @@
 #include <benchmark/benchmark.h>
 
 #include "../EquivalenceImages.h"
+#include "../PassBench.h"
 #include "ATrousPass.h"
 
 namespace {
@@ -79,17 +80,7 @@ void BM_ATrousPair(benchmark::State& state) {
         hs[i]->bind("objectId", in.g.ids);
         hs[i]->run();  // allocate outputs and scratch
     }
-    Pass* passes[2] = {&a.pass(), &b.pass()};
-    PassIO* ios[2] = {&a, &b};
-    for (auto _ : state) {
-        if (state.range(2)) {
-            a.pass().executeFused(a.ctx, passes, ios);
-        } else {
-            a.run();
-            b.run();
-        }
-        benchmark::DoNotOptimize(b.out("color").channel(0)[0]);
-    }
+    passbench::timePair(state, a, b, state.range(2) != 0, "color");
 }
 BENCHMARK(BM_ATrousPair)
     ->ArgsProduct({{1, 16}, {1, 2}, {0, 1}})

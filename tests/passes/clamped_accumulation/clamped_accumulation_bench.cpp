@@ -6,6 +6,7 @@
 
 #include <random>
 
+#include "../PassBench.h"
 #include "ClampedAccumulationPass.h"
 #include "kestrel/testing/PassHarness.h"
 
@@ -37,20 +38,9 @@ void BM_ClampedAccumulation(benchmark::State& state) {
     h.bind("color", in.cur);
     h.bind("history", in.hist);
     h.bind("historyLength", in.len);
-    h.run();  // allocate the output
-    for (auto _ : state) {
-        h.run();
-        benchmark::DoNotOptimize(h.out("color").channel(0)[0]);
-    }
-    state.counters["Mpx/s"] = benchmark::Counter(double(kW) * kH * double(state.iterations()) / 1e6,
-                                                 benchmark::Counter::kIsRate);
+    passbench::timeRuns(state, h, "color");
 }
-BENCHMARK(BM_ClampedAccumulation)
-    ->Arg(1)
-    ->Arg(2)
-    ->ArgName("threads")
-    ->UseRealTime()
-    ->Unit(benchmark::kMillisecond);
+KESTREL_PASS_BENCHMARK(BM_ClampedAccumulation);
 
 }  // namespace
 

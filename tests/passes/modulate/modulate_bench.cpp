@@ -3,6 +3,7 @@
 // as `modulate_bench`, not registered with ctest: run it by hand.
 #include <benchmark/benchmark.h>
 
+#include "../PassBench.h"
 #include "../demodulate/ModulationTestInputs.h"
 #include "ModulatePass.h"
 #include "kestrel/testing/PassHarness.h"
@@ -22,20 +23,9 @@ void BM_Modulate(benchmark::State& state) {
     h.bind("illumination", illum);
     h.bind("albedo", albedo);
     h.bind("emission", emission);
-    h.run();  // allocate the output
-    for (auto _ : state) {
-        h.run();
-        benchmark::DoNotOptimize(h.out("color").channel(0)[0]);
-    }
-    state.counters["Mpx/s"] = benchmark::Counter(double(kW) * kH * double(state.iterations()) / 1e6,
-                                                 benchmark::Counter::kIsRate);
+    passbench::timeRuns(state, h, "color");
 }
-BENCHMARK(BM_Modulate)
-    ->Arg(1)
-    ->Arg(2)
-    ->ArgName("threads")
-    ->UseRealTime()
-    ->Unit(benchmark::kMillisecond);
+KESTREL_PASS_BENCHMARK(BM_Modulate);
 
 }  // namespace
 

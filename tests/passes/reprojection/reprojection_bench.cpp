@@ -6,6 +6,7 @@
 
 #include <string>
 
+#include "../PassBench.h"
 #include "ReprojectionPass.h"
 #include "ReprojectionScene.h"
 #include "kestrel/testing/PassHarness.h"
@@ -45,13 +46,7 @@ void BM_Reprojection(benchmark::State& state) {
         h.bind("prevMoments", f.prevMoments);
     else
         h.useOutputs({"color", "historyLength", "resampleBlur"});
-    h.run();  // allocate the outputs
-    for (auto _ : state) {
-        h.run();
-        benchmark::DoNotOptimize(h.out("color").channel(0)[0]);
-    }
-    state.counters["Mpx/s"] = benchmark::Counter(double(kW) * kH * double(state.iterations()) / 1e6,
-                                                 benchmark::Counter::kIsRate);
+    passbench::timeRuns(state, h, "color");
     state.SetLabel(!taa    ? "bilinear (single.reprojection)"
                    : tests ? "catmullrom, depth/normal tests"
                            : "catmullrom, no depth/normal tests (taaReprojection)");

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <random>
 
+#include "../PassBench.h"
 #include "TemporalAccumulationPass.h"
 #include "kestrel/testing/PassHarness.h"
 
@@ -47,20 +48,9 @@ void BM_TemporalAccumulation(benchmark::State& state) {
     h.bind("prevColor", in.prevColor);
     h.bind("prevMoments", in.prevMoments);
     h.bind("prevHistoryLength", in.prevLength);
-    h.run();  // allocate the outputs
-    for (auto _ : state) {
-        h.run();
-        benchmark::DoNotOptimize(h.out("color").channel(0)[0]);
-    }
-    state.counters["Mpx/s"] = benchmark::Counter(double(kW) * kH * double(state.iterations()) / 1e6,
-                                                 benchmark::Counter::kIsRate);
+    passbench::timeRuns(state, h, "color");
 }
-BENCHMARK(BM_TemporalAccumulation)
-    ->Arg(1)
-    ->Arg(2)
-    ->ArgName("threads")
-    ->UseRealTime()
-    ->Unit(benchmark::kMillisecond);
+KESTREL_PASS_BENCHMARK(BM_TemporalAccumulation);
 
 }  // namespace
 

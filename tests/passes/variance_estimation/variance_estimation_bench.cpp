@@ -5,6 +5,7 @@
 #include <benchmark/benchmark.h>
 
 #include "../EquivalenceImages.h"
+#include "../PassBench.h"
 #include "VarianceEstimationPass.h"
 
 namespace {
@@ -73,17 +74,7 @@ void BM_VarianceEstimationTwoChains(benchmark::State& state) {
     const Image lengthA = shortBlobs(fraction, 4), lengthB = shortBlobs(fraction, 5);
     PassHarness a = harness(lengthA, int(state.range(1))),
                 b = harness(lengthB, int(state.range(1)));
-    Pass* passes[2] = {&a.pass(), &b.pass()};
-    PassIO* ios[2] = {&a, &b};
-    for (auto _ : state) {
-        if (state.range(2)) {
-            a.pass().executeFused(a.ctx, passes, ios);
-        } else {
-            a.run();
-            b.run();
-        }
-        benchmark::DoNotOptimize(a.out("color").channel(0)[0]);
-    }
+    passbench::timePair(state, a, b, state.range(2) != 0, "color");
 }
 
 BENCHMARK(BM_VarianceEstimation)
