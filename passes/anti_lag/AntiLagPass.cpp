@@ -55,6 +55,12 @@ struct ValidMask {
     const uint64_t* row(int y) const { return bits.data() + size_t(y) * size_t(words); }
 };
 
+/// Whether a vector of `lanes` pixels starting at a multiple of `lanes` has its validity bits in
+/// one mask word (the lane count divides 64): the vector paths below need it.
+constexpr bool vectorInOneMaskWord(int lanes) {
+    return lanes <= 64 && 64 % lanes == 0;
+}
+
 /// The per-pixel terms of image row y, written from t[k] + pad on. Explicit vectors: GCC left
 /// the selects and sanitisers scalar. Luminance as px::luminance rounds it (products, then sums
 /// left to right, no fused multiply-add), so every target gives the same bits.
@@ -77,7 +83,7 @@ void rowTerms(const ImageView& color, const ImageView& history, const ValidMask&
     };
     int x = 0;
     // A vector's lanes lie in one mask word: the lane count divides 64.
-    if (lanes <= 64 && 64 % lanes == 0) {
+    if (vectorInOneMaskWord(lanes)) {
         const uint64_t laneBits = lanes == 64 ? ~uint64_t(0) : (uint64_t(1) << lanes) - 1u;
         for (; x + lanes <= w; x += lanes) {
             const uint64_t bits = (vm[x >> 6] >> (x & 63)) & laneBits;
@@ -221,7 +227,7 @@ void gateRows(const ImageView& color, const ImageView& history, const ValidMask&
 void markValidRows(const ImageView& length, ValidMask& valid, int w, int y0, int y1) {
     const hn::ScalableTag<float> d;
     const int lanes = int(hn::Lanes(d));
-    const bool whole = lanes <= 64 && 64 % lanes == 0;
+    const bool whole = vectorInOneMaskWord(lanes);
     const auto zero = hn::Zero(d), floatMax = hn::Set(d, std::numeric_limits<float>::max());
     for (int y = y0; y < y1; ++y) {
         const float* hl = length.row(0, y);
