@@ -16,8 +16,8 @@
 namespace kestrel::eval {
 
 const char* regionName(int region) {
-    static const char* names[kRegionCount] = {"all",    "background", "emissive",
-                                              "glossy", "textured",   "disoccluded"};
+    static const char* names[kRegionCount] = {"all",      "background",  "emissive", "glossy",
+                                              "textured", "disoccluded", "flat"};
     return region >= 0 && region < kRegionCount ? names[region] : "?";
 }
 
@@ -73,12 +73,38 @@ bool seenBefore(const GBuffer& cur, const GBuffer& prev, int x, int y) {
 
 }  // namespace
 
+bool flatAround(const GBuffer& g, int x, int y) {
+    if (x < 1 || y < 1 || x + 1 >= g.width || y + 1 >= g.height || g.albedoLum.empty())
+        return false;
+    const size_t i = size_t(y) * size_t(g.width) + size_t(x);
+    const float a = g.albedoLum[i];
+    for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+            const size_t j = size_t(y + dy) * size_t(g.width) + size_t(x + dx);
+            if (isBackground(g, j)) return false;
+            if (!g.objectId.empty() && g.objectId[j] != g.objectId[i]) return false;
+            if (!g.specularLum.empty() && !(g.specularLum[j] <= 0.02f)) return false;
+            if (!g.emissionLum.empty() && !(g.emissionLum[j] <= 1e-3f)) return false;
+            if (!(std::fabs(g.albedoLum[j] - a) <= 0.01f * (a + 0.01f))) return false;
+        }
+    if (g.depth.empty()) return true;
+    // One plane: inverse depth is linear in screen space on a plane, so a crease (two walls of one
+    // object) bends it along some line through the centre.
+    const auto inv = [&](int dx, int dy) {
+        return 1.0f / g.depth[size_t(y + dy) * size_t(g.width) + size_t(x + dx)];
+    };
+    const float c = inv(0, 0);
+    for (auto [dx, dy] : {std::pair{1, 0}, {0, 1}, {1, 1}, {1, -1}})
+        if (!(std::fabs(inv(dx, dy) + inv(-dx, -dy) - 2 * c) <= 0.01f * c)) return false;
+    return true;
+}
+
 RegionMasks classifyRegions(const GBuffer& g, const GBuffer* prev) {
     const size_t n = size_t(g.width) * size_t(g.height);
     RegionMasks m;
     for (auto& v : m) v.assign(n, 0);
-    const bool disocc =
-        prev && !g.motionX.empty() && prev->width == g.width && prev->height == g.height;
+    const bool samePrev = prev && prev->width == g.width && prev->height == g.height;
+    const bool disocc = samePrev && !g.motionX.empty();
     for (int y = 0; y < g.height; ++y)
         for (int x = 0; x < g.width; ++x) {
             const size_t i = size_t(y) * size_t(g.width) + size_t(x);
@@ -93,6 +119,8 @@ RegionMasks classifyRegions(const GBuffer& g, const GBuffer* prev) {
                 !g.specularLum.empty() && !g.albedoLum.empty() && g.specularLum[i] > g.albedoLum[i];
             m[kTextured][i] = !emissive && !g.albedoLum.empty() && textured(g, x, y);
             m[kDisoccluded][i] = disocc && !seenBefore(g, *prev, x, y);
+            m[kFlat][i] = !m[kTextured][i] && !m[kDisoccluded][i] && flatAround(g, x, y) &&
+                          (!samePrev || flatAround(*prev, x, y));
         }
     return m;
 }
@@ -261,6 +289,10 @@ double RegionStats::temporal(int k) const {
     return temporalSum[size_t(k)] / double(std::max<uint64_t>(temporalSamples[size_t(k)], 1));
 }
 
+double RegionStats::referenceNoiseShare() const {
+    return double(noise.samples) / double(std::max<uint64_t>(temporalSamples[kAll], 1));
+}
+
 bool RegionStats::worseThanInput(int k) const {
     const double n = double(std::max<uint64_t>(samples[size_t(k)], 1));
     return outSse[size_t(k)] / n > inSse[size_t(k)] / n + kMseSlack;
@@ -283,8 +315,10 @@ RegionStats compareRegions(const Registry& registry, const std::string& outPatte
         RegionMasks masks = classifyRegions(g, consecutive ? &prev : nullptr);
         const Image out = readExrRgb(expandFramePattern(outPattern, f));
         const Image ref = readExrRgb(expandFramePattern(refPattern, f));
-        prevDisplay = stats.add(out.view(), ref.view(), g.color.view(), masks, toneMap,
-                                consecutive ? &prevDisplay : nullptr);
+        DisplayFrame shown = stats.add(out.view(), ref.view(), g.color.view(), masks, toneMap,
+                                       consecutive ? &prevDisplay : nullptr);
+        if (consecutive) stats.noise.add(shown, prevDisplay, g, prev, masks[kFlat]);
+        prevDisplay = std::move(shown);
         prev = std::move(g);
         havePrev = true;
         last = f;
@@ -295,7 +329,7 @@ RegionStats compareRegions(const Registry& registry, const std::string& outPatte
 std::string formatRegionTable(const RegionStats& s) {
     std::string t = "region         share   input dB  output dB   out/in MSE   temporal\n";
     const double all = double(std::max<uint64_t>(s.samples[kAll], 1));
-    char line[160], temporal[32];
+    char line[256], temporal[32];
     for (int k = 0; k < kRegionCount; ++k) {
         if (!s.has(k)) continue;
         if (s.hasTemporal(k))
@@ -306,6 +340,14 @@ std::string formatRegionTable(const RegionStats& s) {
                       regionName(k), 100.0 * double(s.samples[size_t(k)]) / all, s.inPsnr(k),
                       s.outPsnr(k), s.ratio(k), temporal,
                       s.worseThanInput(k) ? "  worse than the input" : "");
+        t += line;
+    }
+    if (s.reportsReferenceNoise()) {
+        std::snprintf(line, sizeof line,
+                      "reference's own noise, estimated on %.1f%% of the frame (flat): %.5f, the "
+                      "least temporal instability there; this output's %.5f (%.2fx)\n",
+                      100.0 * s.referenceNoiseShare(), s.noise.floor(), s.noise.output(),
+                      s.noise.output() / std::max(s.noise.floor(), 1e-12));
         t += line;
     }
     return t;
@@ -324,6 +366,10 @@ nlohmann::json regionsToJson(const RegionStats& s) {
                             {"frames", s.framesWith[size_t(k)]}};
         if (s.hasTemporal(k)) j[regionName(k)]["temporal"] = s.temporal(k);
     }
+    if (s.reportsReferenceNoise())
+        j["referenceNoise"] = {{"share", s.referenceNoiseShare()},
+                               {"floor", s.noise.floor()},
+                               {"output", s.noise.output()}};
     return j;
 }
 
