@@ -3,8 +3,9 @@
 // files as they were before the rewrite, with the graph changes made since written into them
 // by a one-off script (commit 4917c75: each chain's colour history mixed by a Mix pass; the
 // specular chain's atrous3 and atrous4 given iterations 3, so they pass through and are left out
-// as in the group): their pass "diffuse_atrous0" is the instance path
-// "diffuse.atrous0" now (the first '_' of a chain pass became the instance's '.').
+// as in the group; the A-Trous steps 4, 8 and 16 given sigmaL 2.5, the chain's sigmaLWide): their
+// pass "diffuse_atrous0" is the instance path "diffuse.atrous0" now (the first '_' of a chain pass
+// became the instance's '.').
 #include <gtest/gtest.h>
 #include <kestrel/Compiler.h>
 #include <kestrel/Executor.h>
@@ -102,22 +103,30 @@ TEST(ShippedGroups, ExpandToTheFlatGraphs) {
     }
 }
 
-// One edit changes every chain: the group parameter's default drives the five A-Trous
-// iterations of all three chains, and --set on it (or on an instance) reaches exactly those.
+// One edit changes every chain: the group parameters' defaults drive the five A-Trous iterations
+// of all three chains (sigmaL steps 1 and 2, sigmaLWide steps 4 to 16), and --set on them (or on
+// an instance) reaches exactly those.
 TEST(ShippedGroups, OneSigmaForEveryChain) {
-    GraphDesc g = loadGraphFile(shipped("svgf.json"));
-    applyOverride(g, "*.sigmaL=6");
-    int atrous = 0;
-    for (const auto& p : g.passes) {
-        const json params = json::parse(p.paramsJson);
-        const bool iteration = std::regex_match(p.name, std::regex(R"(\w+\.atrous[0-4])"));
-        atrous += iteration;
-        if (iteration)
-            EXPECT_EQ(params.value("sigmaL", 0.0), 6.0) << p.name;
-        else
-            EXPECT_FALSE(params.contains("sigmaL") && params["sigmaL"] == 6) << p.name;
+    for (bool set : {false, true}) {
+        GraphDesc g = loadGraphFile(shipped("svgf.json"));
+        if (set) {
+            applyOverride(g, "*.sigmaL=6");
+            applyOverride(g, "*.sigmaLWide=3");
+        }
+        const double narrow = set ? 6.0 : 4.0, wide = set ? 3.0 : 2.5;
+        int atrous = 0;
+        for (const auto& p : g.passes) {
+            const json params = json::parse(p.paramsJson);
+            std::smatch m;
+            const bool iteration = std::regex_match(p.name, m, std::regex(R"(\w+\.atrous([0-4]))"));
+            atrous += iteration;
+            if (iteration)  // steps 1 and 2 take sigmaL, steps 4, 8 and 16 sigmaLWide
+                EXPECT_EQ(params.value("sigmaL", 0.0), m[1] < "2" ? narrow : wide) << p.name;
+            else
+                EXPECT_FALSE(params.contains("sigmaL") && params["sigmaL"] == narrow) << p.name;
+        }
+        EXPECT_EQ(atrous, 15);
     }
-    EXPECT_EQ(atrous, 15);
 }
 
 /// Each frame's output of `graph` (its writer replaced by a marked output), as raw floats; or
