@@ -1,6 +1,5 @@
 // ReferenceNoise (eval/Regions.h): the reference's own flicker, from motion-compensated changes
 // on flat pixels.
-#include <algorithm>
 #include <array>
 #include <cmath>
 
@@ -54,7 +53,9 @@ public:
             }
         // Motion points from the pixel centre to where it was; taps are at centres.
         const float px = float(x) + mx, py = float(y) + my;
-        if (!(px > 2.f && py > 2.f && px < float(g_.width - 4) && py < float(g_.height - 4)))
+        // The nine footprints' 4x4 taps (x0 - 1 .. x0 + 2) on screen, with the 3x3 windows
+        // sameSurfaceBefore checks around their inner 2x2 (x0 .. x0 + 1).
+        if (!(px >= 1.f && py >= 1.f && px < float(g_.width - 2) && py < float(g_.height - 2)))
             return false;
         f.x0 = int(std::floor(px));
         f.y0 = int(std::floor(py));
@@ -85,7 +86,9 @@ private:
                 if (!g_.objectId.empty() && prev_.objectId[j] != g_.objectId[i]) return false;
                 if (!(std::fabs(prev_.albedoLum[j] - a) <= 0.01f * (a + 0.01f))) return false;
             }
-        return flatAround(prev_, f.x0, f.y0) && flatAround(prev_, f.x0 + 1, f.y0 + 1);
+        // The 3x3 windows around the inner 2x2 cover the 4x4, corners included.
+        return flatAround(prev_, f.x0, f.y0) && flatAround(prev_, f.x0 + 1, f.y0) &&
+               flatAround(prev_, f.x0, f.y0 + 1) && flatAround(prev_, f.x0 + 1, f.y0 + 1);
     }
 
     const GBuffer& g_;

@@ -130,6 +130,7 @@ struct GBufferReader::Impl {
     std::unique_ptr<Parallel> parallel;
     std::unique_ptr<Executor> exec;
     std::vector<std::string> provided;
+    bool antiAliased = false;
 };
 
 namespace {
@@ -175,6 +176,12 @@ GBufferReader::GBufferReader(const Registry& registry, const std::string& patter
         if (!absent) want.push_back(o);
     }
     impl_->provided = want;
+    for (const char* o : {"jitteredAlbedo", "jitteredDiffuseAlbedo"}) {
+        bool absent = false;
+        for (const auto& a : probe->report().absent)
+            absent |= a.rfind(std::string("input.") + o + ":", 0) == 0;
+        impl_->antiAliased |= !absent;
+    }
     want.insert(want.begin(), "color");
     impl_->graph = compileGraph(loaderGraph(pattern, want), registry, copt);
     impl_->parallel = std::make_unique<Parallel>(0);
@@ -186,6 +193,10 @@ GBufferReader::~GBufferReader() = default;
 
 const std::vector<std::string>& GBufferReader::provided() const {
     return impl_->provided;
+}
+
+bool GBufferReader::antiAliased() const {
+    return impl_->antiAliased;
 }
 
 GBuffer GBufferReader::read(int64_t frame) {
@@ -317,7 +328,9 @@ RegionStats compareRegions(const Registry& registry, const std::string& outPatte
         const Image ref = readExrRgb(expandFramePattern(refPattern, f));
         DisplayFrame shown = stats.add(out.view(), ref.view(), g.color.view(), masks, toneMap,
                                        consecutive ? &prevDisplay : nullptr);
-        if (consecutive) stats.noise.add(shown, prevDisplay, g, prev, masks[kFlat]);
+        // Not on anti-aliased renders: the reference's noise is correlated between neighbours.
+        if (consecutive && !reader.antiAliased())
+            stats.noise.add(shown, prevDisplay, g, prev, masks[kFlat]);
         prevDisplay = std::move(shown);
         prev = std::move(g);
         havePrev = true;
@@ -344,8 +357,8 @@ std::string formatRegionTable(const RegionStats& s) {
     }
     if (s.reportsReferenceNoise()) {
         std::snprintf(line, sizeof line,
-                      "reference's own noise, estimated on %.1f%% of the frame (flat): %.5f, the "
-                      "least temporal instability there; this output's %.5f (%.2fx)\n",
+                      "reference's own noise, estimated on %.1f%% of the frame (flat): %.5f, about "
+                      "the least temporal instability there; this output's %.5f (%.2fx)\n",
                       100.0 * s.referenceNoiseShare(), s.noise.floor(), s.noise.output(),
                       s.noise.output() / std::max(s.noise.floor(), 1e-12));
         t += line;

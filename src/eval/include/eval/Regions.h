@@ -65,6 +65,8 @@ public:
     GBuffer read(int64_t frame);
     /// Which outputs the scene provides ("depth", "objectId", ...), for reports.
     const std::vector<std::string>& provided() const;
+    /// Whether the loader takes the render as anti-aliased (it offers jittered albedos).
+    bool antiAliased() const;
 
 private:
     struct Impl;
@@ -83,17 +85,23 @@ bool flatAround(const GBuffer& g, int x, int y);
 
 /// The reference's own frame-to-frame noise, estimated on flat pixels: the part of temporal
 /// instability (Metrics.h: temporalError, the output's change against the reference's) that no
-/// output can remove. For reference noise n and an output error a independent of it, E|a + n| >=
-/// E|n| (Jensen; n's change is symmetric), so no output scores below E|n_t - n_t-1| there.
+/// output can remove. For the reference's change n (symmetric: a difference of two frames' noise)
+/// and an output error a independent of it, (|a + n| + |a - n|) / 2 >= |n|, so E|a + n| >= E|n|:
+/// no output scores below E|n_t - n_t-1| there.
 ///
 /// The estimate: on a flat diffuse surface, shading moves with the surface, so d = r_t -
 /// bilinear(r_t-1 at the motion vector) holds noise and what the lighting itself changes;
 /// d - mean of its 8 neighbours (the same motion for all nine) removes any locally linear change
 /// and leaves noise of variance sigma^2 (9/8 + sum c^2), c the bilinear weights convolved with that
 /// high-pass. Scaled by sqrt(2 / (9/8 + sum c^2)) its mean magnitude is E|n_t - n_t-1| for noise
-/// independent per pixel and Gaussian (exact), heavier-tailed (close). Checked against two
-/// references of the same zoo scene rendered with different seeds, on the same pixels: room
-/// 0.01069 estimated / 0.01066 measured, street-static 0.00454 / 0.00450, street 0.00764 / 0.00725.
+/// independent per pixel and Gaussian. What it assumes, and how it errs otherwise: a heavier tail
+/// (fireflies) reads a few % high; lighting detail sharper than the bilinear resampling keeps
+/// (a shadow edge under sub-pixel motion) counts as noise, high; noise correlated between
+/// neighbours (an anti-aliased reference: a pixel filter wider than a pixel) reads low, so
+/// compareRegions leaves it out on such renders. Checked against two references of the same zoo
+/// scene rendered with different seeds, on the same pixels (`scripts/flicker-floor.sh --check`):
+/// room 0.01087 estimated / 0.01083 measured, street-static 0.00448 / 0.00442, street 0.00766 /
+/// 0.00722 (sunlit, moving camera: +6%).
 struct ReferenceNoise {
     double floorSum = 0, outputSum = 0;
     uint64_t samples = 0;  ///< pixel-channels measured
@@ -103,7 +111,7 @@ struct ReferenceNoise {
     void add(const DisplayFrame& now, const DisplayFrame& before, const GBuffer& g,
              const GBuffer& prev, const std::vector<uint8_t>& flat);
     bool measured() const { return samples > 0; }
-    /// E|n_t - n_t-1| over the measured pixels: the least temporal instability there.
+    /// E|n_t - n_t-1| over the measured pixels: about the least temporal instability there.
     double floor() const { return floorSum / double(std::max<uint64_t>(samples, 1)); }
     /// The output's temporal instability over the same pixels.
     double output() const { return outputSum / double(std::max<uint64_t>(samples, 1)); }
