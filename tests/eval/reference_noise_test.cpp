@@ -10,6 +10,7 @@
 
 #include "../GraphTestUtil.h"
 #include "../TempDir.h"
+#include "GBufferTestUtil.h"
 
 using namespace kestrel;
 using namespace kestrel::eval;
@@ -20,18 +21,7 @@ constexpr int W = 96, H = 64;
 
 /// One grey plane of object 1 facing the camera at depth 4, moving by (mx, my) px per frame.
 GBuffer plane(float mx, float my) {
-    GBuffer g;
-    g.width = W;
-    g.height = H;
-    const size_t n = size_t(W) * H;
-    g.depth.assign(n, 4.f);
-    g.objectId.assign(n, 1);
-    g.emissionLum.assign(n, 0.f);
-    g.albedoLum.assign(n, 0.5f);
-    g.specularLum.assign(n, 0.f);
-    g.motionX.assign(n, mx);
-    g.motionY.assign(n, my);
-    return g;
+    return testutil::greySurface(W, H, 4.f, mx, my);
 }
 
 /// Display values: a lighting pattern fixed to the surface, seen `frame` frames after it was at

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 #include <kestrel/Conventions.h>
 
+#include "GBufferTestUtil.h"
+
 using namespace kestrel;
 using namespace kestrel::eval;
 
@@ -12,18 +14,7 @@ constexpr int W = 8, H = 4;
 
 /// A flat grey surface of object 1 at depth 5, no motion.
 GBuffer surface() {
-    GBuffer g;
-    g.width = W;
-    g.height = H;
-    const size_t n = size_t(W) * H;
-    g.depth.assign(n, 5.f);
-    g.objectId.assign(n, 1);
-    g.emissionLum.assign(n, 0.f);
-    g.albedoLum.assign(n, 0.5f);
-    g.specularLum.assign(n, 0.f);
-    g.motionX.assign(n, 0.f);
-    g.motionY.assign(n, 0.f);
-    return g;
+    return testutil::greySurface(W, H, 5.f);
 }
 
 size_t at(int x, int y) {
