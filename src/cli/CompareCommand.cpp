@@ -94,8 +94,9 @@ void addCompareCommand(CLI::App& app, Action& action) {
     cmd->add_option("--ref-layer", args->refLayer, "RGB layer of the reference files");
     cmd->add_option("--regions", args->regions,
                     "The run's input frames (as run --input): also report the error per region "
-                    "(background, emissive, glossy, textured, disoccluded; from its G-buffer) "
-                    "for the output and for the 1-spp input");
+                    "(background, emissive, glossy, textured, disoccluded, flat; from its "
+                    "G-buffer) for the output and for the 1-spp input, and the reference's own "
+                    "flicker on flat surfaces of point-sampled renders");
     cmd->callback([&action, args] { action = [args] { return runCompare(*args); }; });
 }
 
