@@ -167,21 +167,17 @@ GBufferReader::GBufferReader(const Registry& registry, const std::string& patter
     copt.firstFrame = firstFrame;
     // First compile: which outputs the scene has (absent ones are listed in the report).
     auto probe = compileGraph(loaderGraph(pattern, {"color"}), registry, copt);
+    const auto provides = [&](const char* output) {
+        for (const auto& a : probe->report().absent)
+            if (a.rfind(std::string("input.") + output + ":", 0) == 0) return false;
+        return true;
+    };
     std::vector<std::string> want;
     for (const char* o :
-         {"depth", "objectId", "emission", "albedo", "diffuseAlbedo", "specularAlbedo", "motion"}) {
-        bool absent = false;
-        for (const auto& a : probe->report().absent)
-            absent |= a.rfind(std::string("input.") + o + ":", 0) == 0;
-        if (!absent) want.push_back(o);
-    }
+         {"depth", "objectId", "emission", "albedo", "diffuseAlbedo", "specularAlbedo", "motion"})
+        if (provides(o)) want.push_back(o);
     impl_->provided = want;
-    for (const char* o : {"jitteredAlbedo", "jitteredDiffuseAlbedo"}) {
-        bool absent = false;
-        for (const auto& a : probe->report().absent)
-            absent |= a.rfind(std::string("input.") + o + ":", 0) == 0;
-        impl_->antiAliased |= !absent;
-    }
+    impl_->antiAliased = provides("jitteredAlbedo") || provides("jitteredDiffuseAlbedo");
     want.insert(want.begin(), "color");
     impl_->graph = compileGraph(loaderGraph(pattern, want), registry, copt);
     impl_->parallel = std::make_unique<Parallel>(0);
