@@ -18,7 +18,7 @@ out=docs/quality.md
 threads=2
 frames=1-12
 zoo=(room room-cut street street-jittered street-static street-cloud fireflies)
-public=(blender-sample-room blender-street blender-street-defaults)
+public=(blender-sample-room blender-street blender-street-defaults blender-showroom)
 
 if [[ ! -x $bin ]]; then
     echo "quality-table: no kestrel binary at $bin (build it, or set KESTREL_BIN)" >&2
@@ -42,23 +42,23 @@ bench_scene() {
         cat "$tmp/$name.log" >&2
         exit 1
     fi
-    # bench.csv: setting,relMse,psnr,ssim,temporal,msPerFrame,pareto,nonFiniteOutput (setting
-    # names hold no commas). The input row has no run time.
+    # bench.csv: setting,relMse,psnr,ssim,temporal,msPerFrame,pareto,nonFiniteOutput,speckles
+    # (setting names hold no commas). The input row has no run time.
     awk -F, -v scene="$name" 'NR > 1 {
         ms = ($1 ~ /^input/) ? "-" : sprintf("%.2f", $6)
-        printf "| %s | %s | %.5f | %.2f | %.3f | %s | %s |\n", scene, $1, $2, $3, $4, \
-            ($5 == "" ? "-" : sprintf("%.5f", $5)), ms
+        printf "| %s | %s | %.5f | %.2f | %.3f | %s | %.0f | %s |\n", scene, $1, $2, $3, $4, \
+            ($5 == "" ? "-" : sprintf("%.5f", $5)), $9, ms
     }' "$report/bench.csv" >>"$tmp/rows.md"
     # The public sequences again over frames 5-12 of the same runs (history warmed up on 1-4): the
     # window the real-renders issue's targets use. Means of the per-frame figures.
     if [[ $name != zoo-* ]]; then
         awk -F, -v scene="$name" 'NR > 1 && $2 >= 5 && $2 <= 12 {
-            n[$1]++; r[$1] += $3; p[$1] += $4; s[$1] += $5; t[$1] += $6
+            n[$1]++; r[$1] += $3; p[$1] += $4; s[$1] += $5; t[$1] += $6; k8[$1] += $8
             if (!($1 in seen)) { seen[$1] = 1; order[++k] = $1 }
         } END {
             for (i = 1; i <= k; i++) { g = order[i]
-                printf "| %s | %s | %.5f | %.2f | %.3f | %.5f |\n", scene, g, r[g] / n[g], \
-                    p[g] / n[g], s[g] / n[g], t[g] / n[g] }
+                printf "| %s | %s | %.5f | %.2f | %.3f | %.5f | %.0f |\n", scene, g, r[g] / n[g], \
+                    p[g] / n[g], s[g] / n[g], t[g] / n[g], k8[g] / n[g] }
         }' "$report/bench_frames.csv" >>"$tmp/late.md"
     fi
     grep ' skipped: ' "$tmp/$name.log" | grep -v '^warning:' | sed "s/^\([^ ]*\) *skipped: /- $name: \1 skipped: /" \
@@ -94,18 +94,19 @@ cpu=$(grep -m1 'model name' /proc/cpuinfo | sed 's/.*: //')
     echo "12 frames, 256-spp reference). Means over frames $frames; PSNR and SSIM on Reinhard"
     echo "tone-mapped values; temporal instability from frame 2 on; ms per frame is the median"
     echo "compute time after two warm-up frames, loader excluded. \`input (unfiltered)\` is the"
-    echo "1-spp input itself: the error of doing nothing."
+    echo "1-spp input itself: the error of doing nothing. Speckles: isolated dark pixels per megapixel"
+    echo "per frame (src/eval/include/eval/Metrics.h)."
     echo
-    echo "| scene | graph | relMSE | PSNR dB | SSIM | temporal | ms/frame |"
-    echo "| --- | --- | --- | --- | --- | --- | --- |"
+    echo "| scene | graph | relMSE | PSNR dB | SSIM | temporal | speckles/Mpx | ms/frame |"
+    echo "| --- | --- | --- | --- | --- | --- | --- | --- |"
     cat "$tmp/rows.md"
     if [[ -s $tmp/late.md ]]; then
         echo
         echo "The public sequences over frames 5-12 of the same runs (means of the per-frame"
         echo "figures, as \`kestrel compare --frames 5-12\` prints them):"
         echo
-        echo "| scene | graph | relMSE | PSNR dB | SSIM | temporal |"
-        echo "| --- | --- | --- | --- | --- | --- |"
+        echo "| scene | graph | relMSE | PSNR dB | SSIM | temporal | speckles/Mpx |"
+        echo "| --- | --- | --- | --- | --- | --- | --- |"
         cat "$tmp/late.md"
     fi
     if [[ -s $tmp/skipped.txt || ${#missing[@]} -gt 0 ]]; then

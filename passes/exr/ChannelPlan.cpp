@@ -28,6 +28,7 @@ std::vector<ChannelRef> Recipe::channels() const {
                 for (const auto& c : f) out.push_back(c);
     if (backgroundMask) out.push_back(*backgroundMask);
     if (skyDepth) out.push_back(*skyDepth);
+    if (zeroFallback) out.insert(out.end(), zeroFallback->begin(), zeroFallback->end());
     return out;
 }
 
@@ -325,8 +326,11 @@ Plan planBlender(const ChannelSets& files, const std::string& L) {
     // space, which only a turn of more than ~9 degrees per frame would make Reprojection's
     // normal test reject (still 31.62 -> 34.55 and 30.66 -> 31.94 dB there).
     if (b.setFirst("normal", {P("Denoising Normal"), P("Normal")}, "Data > Normal",
-                   {P("Normal"), P("Denoising Normal")}) == 0)
-        b.plan.find("normal")->cameraSpace = true;  // Cycles writes its features in camera space
+                   {P("Normal"), P("Denoising Normal")}) == 0) {
+        Recipe& normal = *b.plan.find("normal");
+        normal.cameraSpace = true;  // Cycles writes its features in camera space
+        normal.zeroFallback = resolveGroup(files, "", P("Normal"), 3);
+    }
     // Planar depth, 1e10 on the background already; else the denoiser's ray-path length, 0 on
     // the background: a depth guide of its own kind (not planar), consistent frame to frame.
     if (b.setFirst("depth", {P("Depth"), P("Denoising Depth")}, "Data > Z") == 1)
@@ -410,6 +414,7 @@ std::set<std::string> applyChannelOverrides(Plan& plan, const std::string& spec,
         r->rest.reset();
         r->backgroundMask.reset();
         r->skyDepth.reset();
+        r->zeroFallback.reset();
         r->zeroIsBackground = r->cameraSpace = r->fromDepth = r->rayLength = false;
         r->scale[0] = r->scale[1] = r->scale[2] = r->scale[3] = 1.f;
         if (expr.empty()) {

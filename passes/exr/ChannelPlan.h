@@ -63,6 +63,12 @@ struct Recipe {
     /// motion: the depth channel that marks the background, where the camera's rotation gives
     /// the motion (Blender writes 0 there even when the camera turns)
     std::optional<ChannelRef> skyDepth;
+    /// normal: where the terms read all zero on a surface, this (world space) instead. Cycles'
+    /// Denoising Normal is zero where the path passed a mirror or glass to the sky or a light
+    /// (8% of the showroom's surfaces): the filters' normal test rejected every neighbour
+    /// there, and a pixel kept its 1-spp value (black speckles); the Normal pass gives the
+    /// first surface's normal.
+    std::optional<Factor> zeroFallback;
     bool absent = false;
     std::string why;  ///< absent: which channel is missing; present: what is read (for notes)
 

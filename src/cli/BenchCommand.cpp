@@ -273,12 +273,12 @@ void runSetting(BenchRun& b, const Setting& s, Prepared& p) {
             row.passMs.push_back({n, median(frames.passMs[n])});
     auto m = row.mean();
     if (!b.reference.empty())
-        std::printf("%-34s %10.5f %7.2f %6.3f %9.5f %10.2f %9.2f\n", s.name.c_str(), m.relMse,
-                    m.psnr, m.ssim, m.temporal.value_or(0.0), row.msPerFrame,
+        std::printf("%-34s %10.5f %7.2f %6.3f %9.5f %8.0f %10.2f %9.2f\n", s.name.c_str(), m.relMse,
+                    m.psnr, m.ssim, m.temporal.value_or(0.0), m.speckles, row.msPerFrame,
                     median(frames.loadMs));
     else
-        std::printf("%-34s %10s %7s %6s %9s %10.2f %9.2f\n", s.name.c_str(), "-", "-", "-", "-",
-                    row.msPerFrame, median(frames.loadMs));
+        std::printf("%-34s %10s %7s %6s %9s %8s %10.2f %9.2f\n", s.name.c_str(), "-", "-", "-", "-",
+                    "-", row.msPerFrame, median(frames.loadMs));
     std::fflush(stdout);
     b.report.rows.push_back(std::move(row));
 }
@@ -324,8 +324,8 @@ int runBench(const BenchOptions& o) {
         std::cerr << "error: " << e.what() << "\n";
         return 2;
     }
-    std::printf("%-34s %10s %7s %6s %9s %10s %9s\n", "graph / setting", "relMSE", "PSNR", "SSIM",
-                "temporal", "ms/frame", "load ms");
+    std::printf("%-34s %10s %7s %6s %9s %8s %10s %9s\n", "graph / setting", "relMSE", "PSNR",
+                "SSIM", "temporal", "speckles", "ms/frame", "load ms");
     int skipped = 0;
     for (size_t i = 0; i < settings.size(); ++i) {
         try {

@@ -43,15 +43,16 @@ std::string markdown(const BenchReport& r, const std::vector<size_t>& pareto) {
     os << "Frames: " << r.frames.size() << "; PSNR, SSIM and temporal instability on "
        << toneMapName(r.toneMap) << "-tone-mapped values; * = on the Pareto front of "
        << "(ms per frame, relMSE).\n\n";
-    os << "| setting | relMSE | PSNR dB | SSIM | temporal | ms/frame | Pareto |\n";
-    os << "| --- | ---: | ---: | ---: | ---: | ---: | :---: |\n";
+    os << "| setting | relMSE | PSNR dB | SSIM | temporal | speckles/Mpx | ms/frame | Pareto |\n";
+    os << "| --- | ---: | ---: | ---: | ---: | ---: | ---: | :---: |\n";
     for (size_t i = 0; i < r.rows.size(); ++i) {
         const BenchRow& row = r.rows[i];
         const FrameMetrics m = row.mean();
         const bool front = std::find(pareto.begin(), pareto.end(), i) != pareto.end();
         os << "| " << row.name << " | " << fmt("%.6g", m.relMse) << " | " << fmt("%.2f", m.psnr)
            << " | " << fmt("%.4f", m.ssim) << " | " << (m.temporal ? fmt("%.6f", *m.temporal) : "-")
-           << " | " << fmt("%.2f", row.msPerFrame) << " | " << (front ? "*" : "") << " |\n";
+           << " | " << fmt("%.0f", m.speckles) << " | " << fmt("%.2f", row.msPerFrame) << " | "
+           << (front ? "*" : "") << " |\n";
     }
     os << "\n## Time per pass (ms per frame)\n\n| setting | pass | ms |\n| --- | --- | ---: |\n";
     for (const BenchRow& row : r.rows)
@@ -71,12 +72,13 @@ FrameMetrics BenchRow::mean() const {
         m.relMse += e.relMse;
         m.psnr += e.psnr;
         m.ssim += e.ssim;
+        m.speckles += e.speckles;
         if (e.temporal) t += *e.temporal, ++nt;
         m.nonFiniteOutput += e.nonFiniteOutput;
         m.nonFiniteReference += e.nonFiniteReference;
     }
     const double n = double(errors.size());
-    m.relMse /= n, m.psnr /= n, m.ssim /= n;
+    m.relMse /= n, m.psnr /= n, m.ssim /= n, m.speckles /= n;
     if (nt) m.temporal = t / double(nt);
     return m;
 }
@@ -107,8 +109,8 @@ BenchFiles writeBenchReport(const BenchReport& r, const std::filesystem::path& d
                      dir / "bench_passes.csv", dir / "bench.html"};
 
     std::ostringstream csv, frames, passes;
-    csv << "setting,relMse,psnr,ssim,temporal,msPerFrame,pareto,nonFiniteOutput\n";
-    frames << "setting,frame,relMse,psnr,ssim,temporal,nonFiniteOutput\n";
+    csv << "setting,relMse,psnr,ssim,temporal,msPerFrame,pareto,nonFiniteOutput,speckles\n";
+    frames << "setting,frame,relMse,psnr,ssim,temporal,nonFiniteOutput,speckles\n";
     passes << "setting,pass,ms\n";
     for (size_t i = 0; i < r.rows.size(); ++i) {
         const BenchRow& row = r.rows[i];
@@ -117,14 +119,14 @@ BenchFiles writeBenchReport(const BenchReport& r, const std::filesystem::path& d
         csv << csvField(row.name) << ',' << fmt("%.9g", m.relMse) << ',' << fmt("%.6g", m.psnr)
             << ',' << fmt("%.6g", m.ssim) << ',' << temporalText(m.temporal) << ','
             << fmt("%.6g", row.msPerFrame) << ',' << (front ? 1 : 0) << ',' << m.nonFiniteOutput
-            << '\n';
+            << ',' << fmt("%.6g", m.speckles) << '\n';
         for (size_t f = 0; f < row.errors.size(); ++f) {
             const FrameMetrics& e = row.errors[f];
             frames << csvField(row.name) << ','
                    << (f < r.frames.size() ? std::to_string(r.frames[f]) : std::to_string(f)) << ','
                    << fmt("%.9g", e.relMse) << ',' << fmt("%.6g", e.psnr) << ','
                    << fmt("%.6g", e.ssim) << ',' << temporalText(e.temporal) << ','
-                   << e.nonFiniteOutput << '\n';
+                   << e.nonFiniteOutput << ',' << fmt("%.6g", e.speckles) << '\n';
         }
         for (const auto& [pass, ms] : row.passMs)
             passes << csvField(row.name) << ',' << csvField(pass) << ',' << fmt("%.6g", ms) << '\n';

@@ -51,7 +51,7 @@ CompareResult compareSequences(const CompareOptions& options) {
     const std::vector<Job> jobs = planJobs(options);
 
     FrameImages previous, current;
-    double sumRel = 0, sumPsnr = 0, sumSsim = 0, sumTemporal = 0;
+    double sumRel = 0, sumPsnr = 0, sumSsim = 0, sumTemporal = 0, sumSpeckles = 0;
     size_t temporalCount = 0;
     for (const Job& job : jobs) {
         Image out = readExrRgb(job.out, options.outLayer);
@@ -71,6 +71,7 @@ CompareResult compareSequences(const CompareOptions& options) {
         sumRel += m.relMse;
         sumPsnr += m.psnr;
         sumSsim += m.ssim;
+        sumSpeckles += m.speckles;
         if (m.temporal) sumTemporal += *m.temporal, ++temporalCount;
         result.mean.nonFiniteOutput += m.nonFiniteOutput;
         result.mean.nonFiniteReference += m.nonFiniteReference;
@@ -80,6 +81,7 @@ CompareResult compareSequences(const CompareOptions& options) {
     result.mean.relMse = sumRel / n;
     result.mean.psnr = sumPsnr / n;
     result.mean.ssim = sumSsim / n;
+    result.mean.speckles = sumSpeckles / n;
     if (temporalCount) result.mean.temporal = sumTemporal / double(temporalCount);
     return result;
 }
@@ -88,16 +90,17 @@ std::string formatTable(const CompareResult& r) {
     bool anyNonFinite = r.mean.nonFiniteOutput || r.mean.nonFiniteReference;
     std::ostringstream os;
     os << "output:    " << r.outPattern << "\nreference: " << r.refPattern
-       << "\ntone map:  " << toneMapName(r.toneMap) << " (PSNR, SSIM, temporal)\n\n";
+       << "\ntone map:  " << toneMapName(r.toneMap)
+       << " (PSNR, SSIM, temporal); speckles per megapixel (isolated dark pixels, Metrics.h)\n\n";
     char line[256];
-    std::snprintf(line, sizeof line, "%8s  %12s  %8s  %7s  %10s", "frame", "relMSE", "PSNR dB",
-                  "SSIM", "temporal");
+    std::snprintf(line, sizeof line, "%8s  %12s  %8s  %7s  %10s  %9s", "frame", "relMSE", "PSNR dB",
+                  "SSIM", "temporal", "speckles");
     os << line << (anyNonFinite ? "  NaN/Inf out  NaN/Inf ref" : "") << "\n";
     auto row = [&](const std::string& label, const FrameMetrics& m) {
         char t[32] = "-";
         if (m.temporal) std::snprintf(t, sizeof t, "%.6f", *m.temporal);
-        std::snprintf(line, sizeof line, "%8s  %12.6g  %8.2f  %7.4f  %10s", label.c_str(), m.relMse,
-                      m.psnr, m.ssim, t);
+        std::snprintf(line, sizeof line, "%8s  %12.6g  %8.2f  %7.4f  %10s  %9.0f", label.c_str(),
+                      m.relMse, m.psnr, m.ssim, t, m.speckles);
         os << line;
         if (anyNonFinite) {
             std::snprintf(line, sizeof line, "  %11zu  %11zu", m.nonFiniteOutput,
@@ -121,6 +124,7 @@ nlohmann::json toJson(const CompareResult& r) {
         j["relMse"] = m.relMse;
         j["psnr"] = m.psnr;
         j["ssim"] = m.ssim;
+        j["speckles"] = m.speckles;
         j["temporal"] = m.temporal ? nlohmann::json(*m.temporal) : nlohmann::json(nullptr);
         j["nonFiniteOutput"] = m.nonFiniteOutput;
         j["nonFiniteReference"] = m.nonFiniteReference;

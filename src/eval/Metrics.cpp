@@ -304,6 +304,55 @@ double temporalInstability(const ImageView& out, const ImageView& outPrev, const
     return n ? total / double(n * kRgb) : 0.0;
 }
 
+// ---- Speckles ---------------------------------------------------------------------------------
+
+namespace {
+// Rec. 709 luminance of pixel i, negatives as 0 (a speckle is dark, not negative).
+std::vector<float> luminancePlane(const ImageView& v) {
+    const size_t n = v.pixels();
+    std::vector<float> l(n);
+    const float *r = v.channel(0), *g = v.channel(1), *b = v.channel(2);
+    for (size_t i = 0; i < n; ++i)
+        l[i] = std::max(0.f, 0.2126f * r[i] + 0.7152f * g[i] + 0.0722f * b[i]);
+    return l;
+}
+
+float median3x3(const std::vector<float>& l, int w, int h, int x, int y) {
+    float v[9];
+    int k = 0;
+    for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+            const int xx = std::clamp(x + dx, 0, w - 1), yy = std::clamp(y + dy, 0, h - 1);
+            v[k++] = l[size_t(yy) * size_t(w) + size_t(xx)];
+        }
+    std::nth_element(v, v + 4, v + 9);
+    return v[4];
+}
+}  // namespace
+
+std::vector<uint8_t> speckleMask(const ImageView& out, const ImageView& ref) {
+    requireSameRgb(out, ref);
+    const int w = out.width(), h = out.height();
+    const std::vector<float> lo = luminancePlane(out), lr = luminancePlane(ref);
+    double sum = 0;
+    for (float v : lr) sum += v;
+    const float notDark = float(0.05 * sum / double(std::max<size_t>(lr.size(), 1)));
+    std::vector<uint8_t> mask(lo.size(), 0);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const size_t i = size_t(y) * size_t(w) + size_t(x);
+            if (lr[i] > notDark && lo[i] < 0.3f * lr[i] && median3x3(lo, w, h, x, y) > 2.f * lo[i])
+                mask[i] = 1;
+        }
+    return mask;
+}
+
+double specklesPerMegapixel(const std::vector<uint8_t>& mask) {
+    size_t count = 0;
+    for (uint8_t m : mask) count += m;
+    return mask.empty() ? 0.0 : 1e6 * double(count) / double(mask.size());
+}
+
 FrameMetrics compareImages(const ImageView& out, const ImageView& ref, ToneMap tm,
                            const FrameImages* previous, FrameImages* current) {
     requireSameRgb(out, ref);
@@ -311,6 +360,7 @@ FrameMetrics compareImages(const ImageView& out, const ImageView& ref, ToneMap t
     Image o = sanitizedRgb(out, &m.nonFiniteOutput, "output");
     Image r = sanitizedRgb(ref, &m.nonFiniteReference, "reference");
     m.relMse = relMse(o, r);
+    m.speckles = specklesPerMegapixel(speckleMask(o, r));
     FrameImages display{toneMapped(o, tm), toneMapped(r, tm)};
     m.psnr = psnr(display.outDisplay, display.refDisplay);
     m.ssim = ssim(display.outDisplay, display.refDisplay);

@@ -231,8 +231,9 @@ GBuffer GBufferReader::read(int64_t frame) {
 
 DisplayFrame RegionStats::add(const ImageView& out, const ImageView& ref, const ImageView& input,
                               const RegionMasks& masks, ToneMap t, const DisplayFrame* previous) {
-    Image o = toneMapped(sanitizedRgb(out).view(), t);
-    Image r = toneMapped(sanitizedRgb(ref).view(), t);
+    const Image linearOut = sanitizedRgb(out), linearRef = sanitizedRgb(ref);
+    Image o = toneMapped(linearOut.view(), t);
+    Image r = toneMapped(linearRef.view(), t);
     const Image in = toneMapped(sanitizedRgb(input).view(), t);
     const size_t n = out.pixels();
     if (ref.pixels() != n || input.pixels() != n || masks[kAll].size() != n)
@@ -253,6 +254,10 @@ DisplayFrame RegionStats::add(const ImageView& out, const ImageView& ref, const 
         }
     }
     for (int k = 0; k < kRegionCount; ++k) framesWith[size_t(k)] += seen[size_t(k)];
+    const std::vector<uint8_t> speckle = speckleMask(linearOut.view(), linearRef.view());
+    for (size_t i = 0; i < n; ++i)
+        if (speckle[i])
+            for (int k = 0; k < kRegionCount; ++k) speckleCount[size_t(k)] += masks[size_t(k)][i];
     const auto sameSize = [&](const Image& a) {
         return a.width() == o.width() && a.height() == o.height();
     };
@@ -271,6 +276,11 @@ DisplayFrame RegionStats::add(const ImageView& out, const ImageView& ref, const 
             }
         }
     return {std::move(o), std::move(r)};
+}
+
+double RegionStats::speckles(int region) const {
+    const uint64_t pixels = samples[size_t(region)] / 3;  // samples are pixel-channels
+    return pixels ? 1e6 * double(speckleCount[size_t(region)]) / double(pixels) : 0.0;
 }
 
 namespace {
@@ -336,7 +346,8 @@ RegionStats compareRegions(const Registry& registry, const std::string& outPatte
 }
 
 std::string formatRegionTable(const RegionStats& s) {
-    std::string t = "region         share   input dB  output dB   out/in MSE   temporal\n";
+    std::string t =
+        "region         share   input dB  output dB   out/in MSE   temporal  speckles/Mpx\n";
     const double all = double(std::max<uint64_t>(s.samples[kAll], 1));
     char line[256], temporal[32];
     for (int k = 0; k < kRegionCount; ++k) {
@@ -345,9 +356,9 @@ std::string formatRegionTable(const RegionStats& s) {
             std::snprintf(temporal, sizeof temporal, "%10.5f", s.temporal(k));
         else
             std::snprintf(temporal, sizeof temporal, "%10s", "-");
-        std::snprintf(line, sizeof line, "%-12s %6.1f%%  %9.2f  %9.2f   %10.3f %s%s\n",
+        std::snprintf(line, sizeof line, "%-12s %6.1f%%  %9.2f  %9.2f   %10.3f %s  %12.0f%s\n",
                       regionName(k), 100.0 * double(s.samples[size_t(k)]) / all, s.inPsnr(k),
-                      s.outPsnr(k), s.ratio(k), temporal,
+                      s.outPsnr(k), s.ratio(k), temporal, s.speckles(k),
                       s.worseThanInput(k) ? "  worse than the input" : "");
         t += line;
     }
@@ -372,6 +383,7 @@ nlohmann::json regionsToJson(const RegionStats& s) {
                             {"outputPsnr", s.outPsnr(k)},
                             {"mseRatio", s.ratio(k)},
                             {"worseThanInput", s.worseThanInput(k)},
+                            {"speckles", s.speckles(k)},
                             {"frames", s.framesWith[size_t(k)]}};
         if (s.hasTemporal(k)) j[regionName(k)]["temporal"] = s.temporal(k);
     }

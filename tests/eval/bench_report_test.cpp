@@ -136,6 +136,6 @@ TEST(BenchReport, WritesFilesWithPlotsAndCrops) {
     EXPECT_NE(frames.find("svgf,5,0.01,30,0.9,,0"), std::string::npos) << frames;
     EXPECT_NE(slurp(files.passesCsv).find("jbf,atrous,21"), std::string::npos);
     const std::string md = slurp(files.markdown);
-    EXPECT_NE(md.find("| svgf | 0.02 | 30.00 | 0.9000 | 0.010000 | 12.00 | * |"), std::string::npos)
+    EXPECT_NE(md.find("| svgf | 0.02 | 30.00 | 0.9000 | 0.010000 | 0 | 12.00 | * |"), std::string::npos)
         << md;
 }

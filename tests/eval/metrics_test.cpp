@@ -210,3 +210,33 @@ TEST(Metrics, Ssim1080pIsFast) {
     // Measured ~0.1 s of CPU (Release); the bound leaves room for a slow CI core.
     EXPECT_LT(sec, 1.0) << "SSIM of a 1080p RGB image took " << sec << " s of CPU";
 }
+
+// Speckles: an isolated dark pixel on a lit surface counts; the same pixel where the reference
+// is dark too, a dark region the output's neighbours share (a shadow edge), and a dim but not
+// dark pixel (0.5x the reference) do not.
+TEST(Speckles, IsolatedDarkPixelOnLitSurfaceCounts) {
+    const Image ref = constant(5, 5, 1.0f);
+    Image out = constant(5, 5, 1.0f);
+    for (int c = 0; c < 3; ++c) out.at(c, 2, 2) = 0.1f;
+    const std::vector<uint8_t> mask = speckleMask(out, ref);
+    EXPECT_EQ(mask[2 * 5 + 2], 1);
+    size_t count = 0;
+    for (uint8_t m : mask) count += m;
+    EXPECT_EQ(count, 1u);
+    EXPECT_DOUBLE_EQ(specklesPerMegapixel(mask), 1e6 / 25.0);
+    EXPECT_DOUBLE_EQ(compareImages(out, ref, ToneMap::Reinhard).speckles, 1e6 / 25.0);
+}
+
+TEST(Speckles, DarkReferenceSharedDarknessAndDimPixelsDoNot) {
+    Image ref = constant(5, 5, 1.0f), out = constant(5, 5, 1.0f);
+    for (int c = 0; c < 3; ++c) out.at(c, 2, 2) = 0.1f, ref.at(c, 2, 2) = 0.01f;  // dark there
+    EXPECT_DOUBLE_EQ(specklesPerMegapixel(speckleMask(out, ref)), 0.0);
+    Image ref2 = constant(5, 5, 1.0f), out2 = constant(5, 5, 1.0f);
+    for (int y = 0; y < 5; ++y)  // a dark left half in the output: its median is dark too
+        for (int x = 0; x < 3; ++x)
+            for (int c = 0; c < 3; ++c) out2.at(c, x, y) = 0.1f;
+    EXPECT_DOUBLE_EQ(specklesPerMegapixel(speckleMask(out2, ref2)), 0.0);
+    Image out3 = constant(5, 5, 1.0f);
+    for (int c = 0; c < 3; ++c) out3.at(c, 2, 2) = 0.5f;  // dim, not a speckle
+    EXPECT_DOUBLE_EQ(specklesPerMegapixel(speckleMask(out3, ref2)), 0.0);
+}

@@ -238,12 +238,22 @@ TEST(ExrLoaderDenoisingData, DenoisingNormalPreferredToTheNormalPass) {
     auto h = loadStreetSubset(dir, both, {"Combined.RGBA", "Normal.XYZ", "Denoising Normal.XYZ"},
                               "normal");
     auto d = loadStreetSubset(dir, only, {"Combined.RGBA", "Denoising Normal.XYZ"}, "normal");
-    int same = 0;
+    // The Denoising Normal wherever it is set; where it is zero (glass and the mirror sphere
+    // showing the sky) a unit normal from the Normal pass (ZeroDenoisingNormalFallsBack...).
+    int same = 0, set = 0, filled = 0;
     for (int y = 0; y < 180; ++y)
-        for (int x = 0; x < 320; ++x)
-            for (int c = 0; c < 3; ++c)
-                same += h.out("normal").at(c, x, y) == d.out("normal").at(c, x, y);
-    EXPECT_EQ(same, 320 * 180 * 3);
+        for (int x = 0; x < 320; ++x) {
+            auto at = [&](PassHarness& p, int c) { return p.out("normal").at(c, x, y); };
+            if (at(d, 0) != 0.f || at(d, 1) != 0.f || at(d, 2) != 0.f) {
+                ++set;
+                for (int c = 0; c < 3; ++c) same += at(h, c) == at(d, c);
+            } else {
+                const float len2 = at(h, 0) * at(h, 0) + at(h, 1) * at(h, 1) + at(h, 2) * at(h, 2);
+                filled += std::fabs(len2 - 1.f) < 1e-2f;
+            }
+        }
+    EXPECT_EQ(same, 3 * set);
+    EXPECT_GT(filled, 1000);  // 2,018 surface pixels of frame 8 have no Denoising Normal
 }
 
 TEST(ExrLoaderDenoisingData, DenoisingNormalStaysInCameraSpaceWithoutACamera) {
@@ -277,4 +287,31 @@ TEST(ExrLoaderDenoisingData, BackgroundMotionIsUnknownWithoutACamera) {
     EXPECT_EQ(h.out("motion").at(1, 0, 0), -0.5f);  // Blender's y points up the image
     EXPECT_TRUE(std::isnan(h.out("motion").at(0, 1, 0)));
     EXPECT_TRUE(std::isnan(h.out("motion").at(1, 1, 0)));
+}
+
+// Cycles' Denoising Normal is zero where the path passed a mirror to the sky or a light: on a
+// point-sampled render the loader gives such a surface pixel the Normal pass's normal reversed
+// (the filters then join it with the rest of what the mirror shows, never with the mirror's
+// frame); on an anti-aliased one the zero stays (ExrLoader::planAntiAliasing says why).
+TEST(ExrLoaderDenoisingData, ZeroDenoisingNormalFallsBackToTheReversedNormalPass) {
+    for (const char* aa : {"false", "true"}) {
+        TempDir tmp(std::string("zero-normal-") + aa);
+        Channels ch;
+        ch["ViewLayer.Denoising Normal.X"] = {0.f, 0.f};
+        ch["ViewLayer.Denoising Normal.Y"] = {1.f, 0.f};  // pixel 1: zero
+        ch["ViewLayer.Denoising Normal.Z"] = {0.f, 0.f};
+        addGroup(ch, "Normal", "XYZ", {0.f, 0.f, 1.f});
+        ch["ViewLayer.Depth.Z"] = {5.f, 5.f};
+        addGroup(ch, "Combined", "RGBA", {0.5f, 0.5f, 0.5f, 1.f});
+        writeExr(tmp.path / "f.0001.exr", box2(2, 1), ch);
+        auto h = PassHarness::make<ExrLoader>(
+            {1, 1}, {{"path", (tmp.path / "f.####.exr").string()}, {"antiAliased", aa}});
+        h.useOutputs({"normal"});
+        h.ctx.frameNumber = 1;
+        h.run();
+        SCOPED_TRACE(std::string("antiAliased ") + aa);
+        EXPECT_EQ(h.out("normal").at(1, 0, 0), 1.f);  // Denoising Normal where it is set
+        EXPECT_EQ(h.out("normal").at(2, 0, 0), 0.f);
+        EXPECT_EQ(h.out("normal").at(2, 1, 0), std::string(aa) == "false" ? -1.f : 0.f);
+    }
 }

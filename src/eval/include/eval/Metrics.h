@@ -21,12 +21,17 @@
 //   pixel counts and images smaller than the window work.
 // - Temporal instability: mean over pixels and R,G,B of |(o_t - o_{t-1}) - (r_t - r_{t-1})| on
 //   display values: zero when the output changes exactly as the reference does.
+// - Speckles: isolated dark pixels a filter left behind, on linear luminance (Rec. 709): output
+//   below 0.3x the reference, where the reference is not dark (above 5% of its frame mean) and
+//   the output's own 3x3 median is above 2x the pixel. Reported per megapixel per frame.
 #include <kestrel/Image.h>
 
 #include <cstddef>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace kestrel::eval {
 
@@ -49,6 +54,7 @@ struct FrameMetrics {
     double ssim = 0;
     /// Against the previous frame of the sequence; absent on the first frame.
     std::optional<double> temporal;
+    double speckles = 0;            ///< speckles per megapixel (speckleMask)
     size_t nonFiniteOutput = 0;     ///< pixels of the output with a NaN/Inf in R, G or B
     size_t nonFiniteReference = 0;  ///< likewise in the reference
 };
@@ -75,6 +81,12 @@ inline double temporalError(float o, float oPrev, float r, float rPrev) {
 /// Mean temporalError over pixels and R, G, B (display values).
 double temporalInstability(const ImageView& out, const ImageView& outPrev, const ImageView& ref,
                            const ImageView& refPrev);
+
+/// Which pixels are speckles (1) of a (sanitised) linear output against its reference: see the
+/// conventions above. Requires equal extents.
+std::vector<uint8_t> speckleMask(const ImageView& out, const ImageView& ref);
+/// Speckles per megapixel of a mask from speckleMask.
+double specklesPerMegapixel(const std::vector<uint8_t>& mask);
 
 /// All metrics of one frame from raw images (sanitises and tone-maps internally). The previous
 /// frame's display images, when given, produce FrameMetrics::temporal.

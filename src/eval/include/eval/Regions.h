@@ -125,6 +125,7 @@ struct RegionStats {
     std::array<uint64_t, kRegionCount> framesWith{};
     std::array<double, kRegionCount> temporalSum{};
     std::array<uint64_t, kRegionCount> temporalSamples{};  ///< pixel-channels
+    std::array<uint64_t, kRegionCount> speckleCount{};     ///< pixels (Metrics.h: speckleMask)
     ReferenceNoise noise;  ///< the reference's own flicker on flat pixels (compareRegions)
 
     /// Adds one frame: output, reference and input are linear RGB, tone-mapped here. With
@@ -142,6 +143,8 @@ struct RegionStats {
     /// Reported from 1% of the frame on: a few pixels under a moving shadow or reflection would
     /// count the light's own change as noise (blender-street: 16 flat pixels).
     bool reportsReferenceNoise() const { return referenceNoiseShare() >= 0.01; }
+    /// Speckles per megapixel of the region (per frame: over every frame's pixels in it).
+    double speckles(int region) const;
     double outPsnr(int region) const;
     double inPsnr(int region) const;
     /// Output MSE over input MSE (< 1: the filter helped there).
