@@ -75,11 +75,19 @@ __attribute__((always_inline)) inline void pixel(Params p, const Row& r, int x, 
     const bool useM = HasM && valid;
     const float pm0 = px::sanitize(r.pm0[x]), pm1 = px::sanitizePositive(r.pm1[x], 1e32f);
     const float m1p = useM ? pm0 : 0.f, m2p = useM ? pm1 : 0.f;
-    // Firefly clamp: against the mean + k sigma of the 8 neighbours (the centre excluded) and,
-    // where the history is valid, of the history's own moments. Selects, no branches.
+    const bool useC = HasC && valid;
+    const float hl = valid ? std::min(cap, hPrev + 1.f) : 1.f;
+    const float ac = std::max(alpha, 1.f / hl), am = std::max(momentsAlpha, 1.f / hl);
+    // Firefly clamp: against the mean + k' sigma of the 8 neighbours (the centre excluded) and,
+    // where the history is valid, of the history's own moments. Selects, no branches. k' = k / w,
+    // w the weight the sample enters the colour with (1 without a history, down to alpha with a
+    // long one): what one sample moves the accumulated colour is held to k sigma whatever the
+    // history. A fixed k clamped every bright sample of a heavy-tailed 1-spp signal against its
+    // mostly dark neighbours, darkening the showroom's indirect light by 19% (out/ref mean 0.81).
+    const float ke = k / (useC ? ac : 1.f);
     const float mu = s1 / n;
-    const float nb = std::fma(std::sqrt(std::max(0.f, std::fma(-mu, mu, s2 / n))), k, mu);
-    const float hb = std::fma(std::sqrt(std::max(0.f, std::fma(-m1p, m1p, m2p))), k, m1p);
+    const float nb = std::fma(std::sqrt(std::max(0.f, std::fma(-mu, mu, s2 / n))), ke, mu);
+    const float hb = std::fma(std::sqrt(std::max(0.f, std::fma(-m1p, m1p, m2p))), ke, m1p);
     float bound = noNeighbours ? 1e30f : nb;
     bound = useM ? std::max(bound, hb) : bound;
     const bool clamp = (k > 0.f) & (l > 0.f) & (l > bound);
@@ -92,9 +100,6 @@ __attribute__((always_inline)) inline void pixel(Params p, const Row& r, int x, 
     // camera, a glint) passes within a few frames where at b it stayed at the neighbours' level
     // for good; a noise tail (l <= 2b) enters at b as before, a one-off firefly at most at 2b.
     l = clamp ? std::min(std::max(l - bz, bz), 2.f * bz) : l;
-    const float hl = valid ? std::min(cap, hPrev + 1.f) : 1.f;
-    const float ac = std::max(alpha, 1.f / hl), am = std::max(momentsAlpha, 1.f / hl);
-    const bool useC = HasC && valid;
     const float q0 = px::sanitize(r.p0[x]), q1 = px::sanitize(r.p1[x]), q2 = px::sanitize(r.p2[x]);
     r.o0[x] = useC ? std::fma(ac, c0 - q0, q0) : c0;
     r.o1[x] = useC ? std::fma(ac, c1 - q1, q1) : c1;

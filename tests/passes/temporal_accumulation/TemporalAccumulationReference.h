@@ -58,6 +58,10 @@ inline Outputs accumulate(const Image& color, const Image* prevColor, const Imag
                 m1p = px::sanitize(prevMoments->at(0, x, y));
                 m2p = px::sanitizePositive(prevMoments->at(1, x, y), 1e32f);
             }
+            const float hl = valid ? std::min(cap, hPrev + 1.f) : 1.f;
+            const float ac = std::max(p.alpha, 1.f / hl), am = std::max(p.momentsAlpha, 1.f / hl);
+            // k over the weight the sample enters the colour with (1 without a colour history).
+            const float ke = k / (valid && prevColor ? ac : 1.f);
             if (k > 0.f && l > 0.f) {
                 // Statistics of the 8 neighbours (the centre excluded), row by row.
                 float s1 = 0.f, s2 = 0.f;
@@ -74,13 +78,13 @@ inline Outputs accumulate(const Image& color, const Image* prevColor, const Imag
                 float bound = 1e30f;
                 if (n > 0) {
                     const float mu = s1 / float(n);
-                    bound =
-                        std::fma(std::sqrt(std::max(0.f, std::fma(-mu, mu, s2 / float(n)))), k, mu);
+                    bound = std::fma(std::sqrt(std::max(0.f, std::fma(-mu, mu, s2 / float(n)))), ke,
+                                     mu);
                 }
                 if (valid && prevMoments)
                     bound = std::max(
                         bound,
-                        std::fma(std::sqrt(std::max(0.f, std::fma(-m1p, m1p, m2p))), k, m1p));
+                        std::fma(std::sqrt(std::max(0.f, std::fma(-m1p, m1p, m2p))), ke, m1p));
                 if (l > bound) {
                     const float s = std::max(bound, 0.f) / l;
                     for (float& v : c) v *= s;
@@ -89,8 +93,6 @@ inline Outputs accumulate(const Image& color, const Image* prevColor, const Imag
                     l = std::min(std::max(l - b, b), 2.f * b);
                 }
             }
-            const float hl = valid ? std::min(cap, hPrev + 1.f) : 1.f;
-            const float ac = std::max(p.alpha, 1.f / hl), am = std::max(p.momentsAlpha, 1.f / hl);
             for (int ch = 0; ch < 3; ++ch) {
                 float v = c[ch];
                 if (valid && prevColor) {

@@ -93,6 +93,20 @@ TEST(TemporalAccumulation, FireflyIsClampedBeforeEnteringHistory) {
     EXPECT_NEAR(kept.out("color").at(0, 2, 2), 1.f + 0.2f * (20.f - 1.f), 1e-5f);
 }
 
+// The clamp's k is over the weight the sample enters the colour with: without a history a
+// sample 8 sigma above its neighbours is clamped to mean + 3 sigma; with a long history (weight
+// alpha 0.2, k' = 15) it is kept, its effect on the accumulated colour already 5x smaller.
+TEST(TemporalAccumulation, FireflyBoundWidensWithTheHistory) {
+    Image cur = grey(3, 3, [](int x, int y) { return (x + y) % 2 ? 0.5f : 1.5f; });  // sigma 0.5
+    for (int c = 0; c < 3; ++c) cur.at(c, 1, 1) = 5.f;  // mean 1 + 8 sigma
+    auto first = step(cur, nullptr);
+    EXPECT_NEAR(first.out("color").at(0, 1, 1), 2.5f, 1e-5f);
+    History hist{constant(3, 3, Format::Float3, 1.f), constant(3, 3, Format::Float2, 1.f),
+                 constant(3, 3, Format::Float, 8.f)};  // mean 1, no variance of its own
+    auto later = step(cur, &hist);
+    EXPECT_NEAR(later.out("color").at(0, 1, 1), 1.f + 0.2f * (5.f - 1.f), 1e-5f);
+}
+
 // A noise-free highlight under a still camera (a glint, a sun reflection at 1 spp) is bright
 // against its neighbours every frame. Its first frames are clamped as a firefly would be, but its
 // history bound rises until it passes; with the moments held at the bound it stayed at the
