@@ -29,6 +29,9 @@ std::vector<ChannelRef> Recipe::channels() const {
     if (backgroundMask) out.push_back(*backgroundMask);
     if (skyDepth) out.push_back(*skyDepth);
     if (zeroFallback) out.insert(out.end(), zeroFallback->begin(), zeroFallback->end());
+    if (reflectionOf)
+        for (const Factor* f : {&reflectionOf->first, &reflectionOf->second})
+            out.insert(out.end(), f->begin(), f->end());
     return out;
 }
 
@@ -65,6 +68,9 @@ const std::vector<OutputSpec>& loaderOutputs() {
         {"position", Format::Float3, 0.f, "world-space position"},
         {"motion", Format::Float2, 0.f, "motion to the previous frame in pixels, y down"},
         {"objectId", Format::Int32, float(kBackgroundId), "object id, -1 on background"},
+        {"reflection", Format::Float, 0.f,
+         "1 where the pixel's features describe what a near-specular surface shows (a mirror, "
+         "a polished floor: Cycles' denoising features pass such bounces), 0 elsewhere"},
     };
     return outputs;
 }
@@ -330,7 +336,17 @@ Plan planBlender(const ChannelSets& files, const std::string& L) {
         Recipe& normal = *b.plan.find("normal");
         normal.cameraSpace = true;  // Cycles writes its features in camera space
         normal.zeroFallback = resolveGroup(files, "", P("Normal"), 3);
+        if (normal.zeroFallback) {
+            Recipe& reflection = *b.plan.find("reflection");
+            reflection.reflectionOf = {normal.terms[0][0], *normal.zeroFallback};
+            reflection.absent = false;
+            reflection.why = "where " + P("Denoising Normal") + " names another surface than " +
+                             P("Normal") + " (needs the camera)";
+        }
     }
+    if (!b.plan.find("reflection")->reflectionOf)
+        b.absent("reflection", "channels " + P("Denoising Normal") + " and " + P("Normal") +
+                                   " (both: where they differ, the features passed a mirror)");
     // Planar depth, 1e10 on the background already; else the denoiser's ray-path length, 0 on
     // the background: a depth guide of its own kind (not planar), consistent frame to frame.
     if (b.setFirst("depth", {P("Depth"), P("Denoising Depth")}, "Data > Z") == 1)
@@ -382,7 +398,7 @@ Plan planGames202(const ChannelSets& files) {
     if (!depth.absent && resolveGroup(files, "ID", "Y", 1))
         depth.backgroundMask = ChannelRef{"ID", "Y"};
     for (const char* o : {"albedo", "emission", "direct", "indirect", "diffuse", "diffuseAlbedo",
-                          "specular", "specularAlbedo", "motion"})
+                          "specular", "specularAlbedo", "motion", "reflection"})
         b.absent(o,
                  std::string("buffer for ") + o + " (it has beauty, normal, position, depth, ID)");
     return b.plan;
@@ -415,6 +431,7 @@ std::set<std::string> applyChannelOverrides(Plan& plan, const std::string& spec,
         r->backgroundMask.reset();
         r->skyDepth.reset();
         r->zeroFallback.reset();
+        r->reflectionOf.reset();
         r->zeroIsBackground = r->cameraSpace = r->fromDepth = r->rayLength = false;
         r->scale[0] = r->scale[1] = r->scale[2] = r->scale[3] = 1.f;
         if (expr.empty()) {

@@ -7,6 +7,7 @@
 #include <set>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "kestrel/Format.h"
@@ -69,6 +70,10 @@ struct Recipe {
     /// there, and a pixel kept its 1-spp value (black speckles); the Normal pass gives the
     /// first surface's normal.
     std::optional<Factor> zeroFallback;
+    /// reflection: {Cycles' Denoising Normal (camera space), the Normal pass (world space)}: 1
+    /// where the first names another surface than the second (the features passed a
+    /// near-specular bounce) or none (zero: they reached the sky or a light that way).
+    std::optional<std::pair<Factor, Factor>> reflectionOf;
     bool absent = false;
     std::string why;  ///< absent: which channel is missing; present: what is read (for notes)
 

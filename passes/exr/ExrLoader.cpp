@@ -17,6 +17,8 @@
 #include <map>
 #include <set>
 
+#include <kestrel/PixelMath.h>
+
 #include "PixelJitter.h"
 #include "Unproject.h"
 
@@ -505,6 +507,12 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
     depthHalf_ = storedAsHalf("depth", probed.get(), first);
     if (!overridden.count("position")) planPositionFromDepth(probed.get());
     if (!overridden.count("normal")) planNormalFromDepth(probed.get());
+    if (Recipe& reflection = *plan_.find("reflection");
+        reflection.reflectionOf && !hasCamera(probed.get())) {
+        reflection.reflectionOf.reset();
+        reflection.absent = true;
+        reflection.why = "no camera (camera.json) to turn Denoising Normal to world space";
+    }
     if (!overridden.count("motion")) planSkyMotion();
     note(std::string("layout ") + layoutName(plan_.layout) + " (" + firstPath + ")");
     for (const auto& r : plan_.recipes)
@@ -837,6 +845,35 @@ std::optional<Extent> ExrLoader::beginFrame(FrameContext& ctx) {
     return Extent{int(display_.width()), int(display_.height())};
 }
 
+/// Recipe::reflectionOf: 1 where Cycles' Denoising Normal (camera space, read before the
+/// convention fixes turn it) is zero on a surface or more than ~8 degrees from the Normal pass
+/// (world space, turned to camera space here), else 0. Without a camera this frame: 0.
+static void reflectionMask(FrameContext& ctx, const std::pair<Factor, Factor>& of,
+                           const std::map<ChannelRef, float*>& dest, const ImageView& out,
+                           size_t n) {
+    float* o = asFloats(out, 0);
+    if (!ctx.scene || !ctx.scene->hasCamera) {
+        std::fill(o, o + n, 0.f);
+        return;
+    }
+    const auto& m = ctx.scene->worldToCamera.m;
+    const float* d[3] = {dest.at(of.first[0]), dest.at(of.first[1]), dest.at(of.first[2])};
+    const float* g[3] = {dest.at(of.second[0]), dest.at(of.second[1]), dest.at(of.second[2])};
+    for (size_t i = 0; i < n; ++i) {
+        const float gx = px::sanitizeNormal(g[0][i]), gy = px::sanitizeNormal(g[1][i]),
+                    gz = px::sanitizeNormal(g[2][i]);
+        // World to Cycles' camera space (x right, y up, z forward: rotateToWorld's inverse).
+        const float cx = m[0][0] * gx + m[0][1] * gy + m[0][2] * gz;
+        const float cy = m[1][0] * gx + m[1][1] * gy + m[1][2] * gz;
+        const float cz = -(m[2][0] * gx + m[2][1] * gy + m[2][2] * gz);
+        const float dx = px::sanitizeNormal(d[0][i]), dy = px::sanitizeNormal(d[1][i]),
+                    dz = px::sanitizeNormal(d[2][i]);
+        const bool surface = gx != 0.f || gy != 0.f || gz != 0.f;
+        const bool none = dx == 0.f && dy == 0.f && dz == 0.f;
+        o[i] = surface && (none || dx * cx + dy * cy + dz * cz < 0.99f) ? 1.f : 0.f;
+    }
+}
+
 /// Where all three channels of `out` are zero, the fallback's channels reversed
 /// (Recipe::zeroFallback): the sky or light a mirror shows is filtered with itself, across the
 /// mirror, and never with the mirror's frame or the wall around it, whose normal is the
@@ -870,7 +907,7 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
             continue;
         }
         active.push_back(&r);
-        if (r.fromDepth) {  // computed from the depth channel below (read into scratch)
+        if (r.fromDepth || r.reflectionOf) {  // computed below from channels read to scratch
             derived.push_back(&r);
             continue;
         }
@@ -990,12 +1027,16 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
     });
     // Positions unprojected from raw depth (before depth's own background convention).
     for (const Recipe* r : derived) {
+        if (r->reflectionOf) continue;  // reflectionMask, below
         const float* depth = dest[r->terms[0][0][0]];
         if (r->output == "normal")
             normalsFromDepth(ctx, depth, r->rayLength, io.output(r->output), W, H);
         else
             unprojectDepth(ctx, depth, r->rayLength, io.output(r->output), W, H);
     }
+
+    for (const Recipe* r : active)
+        if (r->reflectionOf) reflectionMask(ctx, *r->reflectionOf, dest, io.output(r->output), N);
 
     // Convention fixes, in place: scales (motion y), background depth, then ids to int32.
     for (const Recipe* r : active) {

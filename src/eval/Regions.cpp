@@ -17,7 +17,7 @@ namespace kestrel::eval {
 
 const char* regionName(int region) {
     static const char* names[kRegionCount] = {"all",      "background",  "emissive", "glossy",
-                                              "textured", "disoccluded", "flat"};
+                                              "textured", "disoccluded", "flat",     "reflection"};
     return region >= 0 && region < kRegionCount ? names[region] : "?";
 }
 
@@ -121,6 +121,7 @@ RegionMasks classifyRegions(const GBuffer& g, const GBuffer* prev) {
             m[kDisoccluded][i] = disocc && !seenBefore(g, *prev, x, y);
             m[kFlat][i] = !m[kTextured][i] && !m[kDisoccluded][i] && flatAround(g, x, y) &&
                           (!samePrev || flatAround(*prev, x, y));
+            m[kReflection][i] = !g.reflection.empty() && g.reflection[i] > 0.5f;
         }
     return m;
 }
@@ -174,7 +175,8 @@ GBufferReader::GBufferReader(const Registry& registry, const std::string& patter
     };
     std::vector<std::string> want;
     for (const char* o :
-         {"depth", "objectId", "emission", "albedo", "diffuseAlbedo", "specularAlbedo", "motion"})
+         {"depth", "objectId", "emission", "albedo", "diffuseAlbedo", "specularAlbedo", "motion",
+          "reflection"})
         if (provides(o)) want.push_back(o);
     impl_->provided = want;
     impl_->antiAliased = provides("jitteredAlbedo") || provides("jitteredDiffuseAlbedo");
@@ -221,6 +223,7 @@ GBuffer GBufferReader::read(int64_t frame) {
     else if (has("albedo"))
         g.albedoLum = luminance(e.output("input.albedo"));
     if (has("specularAlbedo")) g.specularLum = luminance(e.output("input.specularAlbedo"));
+    if (has("reflection")) g.reflection = plane(e.output("input.reflection"), 0);
     if (has("motion")) {
         const ImageView v = e.output("input.motion");
         g.motionX = plane(v, 0);

@@ -42,6 +42,23 @@ TEST(Regions, EachRegionFromItsGBufferCue) {
     EXPECT_FALSE(m[kTextured][at(1, 2)]);  // flat albedo
     for (size_t i = 0; i < m[kAll].size(); ++i)
         EXPECT_FALSE(m[kDisoccluded][i]);  // no frame before
+    EXPECT_FALSE(m[kReflection][at(2, 2)]);  // no reflection output: none
+}
+
+// reflection: where the loader's reflection output is set (features through a mirror), never
+// on the background.
+TEST(Regions, ReflectionFromTheLoadersReflectionOutput) {
+    GBuffer g = surface();
+    g.reflection.assign(g.depth.size(), 0.f);
+    g.reflection[at(3, 2)] = 1.f;
+    g.reflection[at(0, 0)] = 1.f;
+    g.depth[at(0, 0)] = kBackgroundDepth;
+    g.objectId[at(0, 0)] = kBackgroundId;
+    RegionMasks m = classifyRegions(g, nullptr);
+    EXPECT_TRUE(m[kReflection][at(3, 2)]);
+    EXPECT_FALSE(m[kReflection][at(2, 2)]);
+    EXPECT_FALSE(m[kReflection][at(0, 0)]);
+    EXPECT_STREQ(regionName(kReflection), "reflection");
 }
 
 TEST(Regions, DisoccludedWhereThePreviousFrameShowsAnotherSurface) {

@@ -80,6 +80,7 @@ std::vector<Scene> allScenes() {
         scenes.push_back({z.name, z.options.kind != scenegen::SceneOptions::Kind::Room, false});
     scenes.push_back({"blender-sample-room", true, true});
     scenes.push_back({"blender-street", true, true});
+    scenes.push_back({"blender-showroom", true, true});
     // Blender's default passes: no DiffCol/GlossCol, so no split.
     scenes.push_back({"blender-street-defaults", false, true});
     return scenes;
@@ -214,7 +215,7 @@ std::string format(const char* f, auto... args) {
 // the zoo street's glossy region 19.60 -> 18.24 dB (jbf), 16.98 (atrous); the zoo street-static's
 // 19.95 -> 19.86, 17.33. That region is reported, not asserted, for them; every other region is.
 bool asserted(const std::string& graph, int region) {
-    return !(isGames202(graph) && region == eval::kGlossy);
+    return !(isGames202(graph) && (region == eval::kGlossy || region == eval::kReflection));
 }
 
 void expectNoRegionWorse(const std::string& graph, const std::string& what,
@@ -240,6 +241,18 @@ void expectFrameGain(const std::string& what, const eval::RegionStats& s, double
                out, in, out - in, minGain);
 }
 
+// Speckles (Metrics.h: isolated dark pixels) svgf.json may leave on the zoo rooms, per megapixel
+// per frame over frames 1-12: a black 1-spp sample with no history, on a curved surface at 96x64,
+// stayed black among filled neighbours (949 on the room before HistoryFix; 149 after, 136 on
+// room-cut). Most of those frames' speckles are on frames 1 and 2.
+constexpr double kMaxRoomSpeckles = 300;
+
+void expectFewSpeckles(const Case& c, const eval::RegionStats& s) {
+    if (c.graph != "svgf.json" || c.scene.name.rfind("room", 0) != 0) return;
+    EXPECT_LE(s.speckles(eval::kAll), kMaxRoomSpeckles)
+        << c.graph << " on " << c.scene.name << ": speckles per megapixel";
+}
+
 class QualityRegions : public testing::TestWithParam<Case> {};
 
 TEST_P(QualityRegions, NoRegionWorseThanInputAndFrameGains) {
@@ -262,6 +275,7 @@ TEST_P(QualityRegions, NoRegionWorseThanInputAndFrameGains) {
     const std::string what = c.graph + " on " + c.scene.name;
     expectNoRegionWorse(c.graph, what, s);
     expectFrameGain(what, s, minGainDb(c.graph, c.scene.name));
+    expectFewSpeckles(c, s);
 }
 
 INSTANTIATE_TEST_SUITE_P(Quality, QualityRegions, testing::ValuesIn(allCases()), caseName);

@@ -315,3 +315,23 @@ TEST(ExrLoaderDenoisingData, ZeroDenoisingNormalFallsBackToTheReversedNormalPass
         EXPECT_EQ(h.out("normal").at(2, 1, 0), std::string(aa) == "false" ? -1.f : 0.f);
     }
 }
+
+// reflection: 1 where Denoising Normal names another surface than the Normal pass (or none): on
+// blender-street the glass and the mirror sphere, a few percent of the frame.
+TEST(ExrLoaderDenoisingData, ReflectionMarksWhereTheFeaturesPassAMirror) {
+    const std::string dir = sharedData("blender-street");
+    if (dir.empty() || !std::filesystem::exists(dir + "/noisy/frame_0005.exr"))
+        GTEST_SKIP() << "../shared/data/blender-street not present";
+    TempDir tmp("street-reflection");
+    auto h = loadStreetSubset(dir, tmp, {"Combined.RGBA", "Normal.XYZ", "Denoising Normal.XYZ"},
+                              "reflection");
+    int marked = 0;
+    for (int y = 0; y < 180; ++y)
+        for (int x = 0; x < 320; ++x) {
+            const float r = h.out("reflection").at(0, x, y);
+            ASSERT_TRUE(r == 0.f || r == 1.f);
+            marked += r == 1.f;
+        }
+    EXPECT_GT(marked, 2000);  // at least the ~2,000 surface pixels without a Denoising Normal
+    EXPECT_LT(marked, 320 * 180 / 10);
+}

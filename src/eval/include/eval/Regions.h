@@ -17,6 +17,10 @@
 //                3x3 neighbours on screen, on one plane of the same object (inverse depth linear
 //                within 1%), with albedo within 1%, in this frame and (where given) the one
 //                before (where the reference's own noise is measured: ReferenceNoise)
+//   reflection   not background, the loader's reflection output set: the pixel's features
+//                describe what a near-specular surface shows (Blender: Cycles' Denoising Normal
+//                names another surface than the Normal pass, or none), so a mirror's or a
+//                polished floor's reflections are measured on their own
 #include <kestrel/Image.h>
 #include <kestrel/Registry.h>
 
@@ -39,6 +43,7 @@ enum Region : int {
     kTextured,
     kDisoccluded,
     kFlat,
+    kReflection,
     kRegionCount
 };
 const char* regionName(int region);
@@ -46,7 +51,7 @@ const char* regionName(int region);
 /// The loader outputs regions are made from, as planar floats (empty where the scene lacks it).
 struct GBuffer {
     int width = 0, height = 0;
-    std::vector<float> depth, emissionLum, albedoLum, specularLum, motionX, motionY;
+    std::vector<float> depth, emissionLum, albedoLum, specularLum, motionX, motionY, reflection;
     std::vector<int32_t> objectId;
     Image color;  ///< the 1-spp input colour (Float3)
 };
