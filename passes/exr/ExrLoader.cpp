@@ -362,6 +362,23 @@ std::string ExrLoader::filePath(const std::string& role, int64_t frame) const {
     return FramePattern(games202Dir_ + role + games202Tail_).expand(frame);
 }
 
+std::vector<std::pair<std::string, std::string>> ExrLoader::filesRead(int64_t frame) const {
+    if (!pattern_) return {};
+    if (plan_.layout != Layout::Games202) {
+        std::vector<std::pair<std::string, std::string>> files{{pattern_->expand(frame), "path"}};
+        if (cameras_) files.push_back({cameras_->path().string(), "camera"});
+        return files;
+    }
+    // Every sibling the layout names, read or not: an output over normal_1.exr destroys the
+    // user's render whether this graph reads normals or not.
+    std::vector<std::pair<std::string, std::string>> files;
+    for (const char* role : kGames202Roles) files.push_back({filePath(role, frame), "path"});
+    std::string mat = filePath("matrix", frame);
+    if (mat.size() > 4 && mat.compare(mat.size() - 4, 4, ".exr") == 0)
+        files.push_back({mat.substr(0, mat.size() - 4) + ".mat", "path"});
+    return files;
+}
+
 std::vector<int64_t> ExrLoader::availableFrames() const {
     if (pattern_) return pattern_->findFrames();
     if (path_.empty()) return {};

@@ -30,6 +30,7 @@ public:
     std::optional<Extent> beginFrame(FrameContext& ctx) override;
     void execute(FrameContext& ctx, PassIO& io) override;
     std::vector<int64_t> availableFrames() const override;
+    std::vector<std::pair<std::string, std::string>> filesRead(int64_t frame) const override;
     void beginRun(const RunContext& rc) override;
     void endRun() override;
 
