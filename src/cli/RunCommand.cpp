@@ -111,6 +111,11 @@ public:
     Progress& progress() { return progress_; }
 
     void starting(const SequencePlan& plan) override {
+        for (const auto& [before, after] : plan.gaps)
+            spdlog::warn(
+                "frames {} and {} of the input are not consecutive (a frame missing, or not a "
+                "file): history reset at frame {}, as at a camera cut",
+                before, after, after);
         if (plan.everythingWritten)
             spdlog::info("--resume: every frame is already written");
         else if (plan.alreadyWritten > 0)

@@ -7,6 +7,7 @@
 #include <map>
 
 #include "CliRunner.h"
+#include "ExrCheck.h"
 
 using namespace clitest;
 
@@ -262,6 +263,44 @@ TEST_F(CliNothingLost, ScenegenIntoARenderFolderNeedsForce) {
     auto forced = box.run({"scenegen", "--out", "scene", "--width", "16", "--height", "12",
                            "--frames", "1", "--spp", "1", "--seed", "7", "--force"});
     EXPECT_EQ(forced.code, 0) << forced.all();
+}
+
+// --- frames that are silently wrong ---------------------------------------------------------
+
+TEST_F(CliNothingLost, GapInTheSequenceIsACutAndSaid) {
+    auto gen = box.run({"scenegen", "--out", "gap", "--width", "32", "--height", "24", "--frames",
+                        "4", "--spp", "2"});
+    ASSERT_EQ(gen.code, 0) << gen.all();
+    const fs::path third = work() / "gap" / "noisy" / "frame_0003.exr";
+    auto runTaa = [&](const std::string& out, std::vector<std::string> extra) {
+        std::vector<std::string> args = {"run",       (graphDir() / "taa.json").string(),
+                                         "--input",   "gap/noisy/frame_####.exr",
+                                         "--output",  out,
+                                         "--threads", "2"};
+        args.insert(args.end(), extra.begin(), extra.end());
+        return box.run(args);
+    };
+    // Frame 4 after a cut: what a run starting at frame 4 computes (history empty).
+    auto fresh = runTaa("fresh/t.####.exr", {"--frames", "4"});
+    ASSERT_EQ(fresh.code, 0) << fresh.all();
+    RgbImage expected;
+    ASSERT_TRUE(readRgb((work() / "fresh" / "t.0004.exr").string(), expected));
+
+    fs::remove(third);
+    for (bool folder : {false, true}) {
+        SCOPED_TRACE(folder ? "a folder named like frame 3" : "frame 3 missing");
+        if (folder) fs::create_directory(third);
+        const std::string dir = folder ? "b" : "a";
+        auto r = runTaa(dir + "/t.####.exr", {});
+        EXPECT_EQ(r.code, 0) << r.all();
+        EXPECT_NE(r.err.find("warning: frames 2 and 4 of the input are not consecutive"),
+                  std::string::npos)
+            << r.all();
+        EXPECT_NE(r.err.find("history reset at frame 4"), std::string::npos) << r.all();
+        RgbImage got;
+        ASSERT_TRUE(readRgb((work() / dir / "t.0004.exr").string(), got));
+        EXPECT_EQ(got.rgb, expected.rgb) << "history was carried across the gap";
+    }
 }
 
 }  // namespace
