@@ -847,6 +847,44 @@ std::optional<Extent> ExrLoader::beginFrame(FrameContext& ctx) {
     return Extent{int(display_.width()), int(display_.height())};
 }
 
+namespace {
+
+// No render's light, depth (1e10 on the sky), vector or id comes near this; issue 40 reported
+// -1e38 albedo in one frame leaving values up to 3.8e8 in the history nine frames later.
+constexpr float kAbsurd = 1e30f;
+
+/// Replaces NaN, infinite and absurd (|v| > kAbsurd) values of a plane by `fill`; how many.
+size_t replaceAbsurd(FrameContext& ctx, float* plane, int W, int H, float fill) {
+    std::atomic<size_t> count{0};
+    ctx.parallelRows(H, [&](int y0, int y1) {
+        size_t n = 0;
+        for (float* v = plane + size_t(y0) * size_t(W); v < plane + size_t(y1) * size_t(W); ++v)
+            if (!(std::fabs(*v) <= kAbsurd)) *v = fill, ++n;
+        if (n) count += n;
+    });
+    return count.load();
+}
+
+}  // namespace
+
+void ExrLoader::replaceAbsurdValues(FrameContext& ctx, PassIO& io,
+                                    const std::vector<const Recipe*>& active, int W, int H) {
+    std::string counts;
+    for (const Recipe* r : active) {
+        const ImageView& out = io.output(r->output);
+        for (int c = 0; c < std::max(1, out.channels()); ++c)
+            if (const size_t n = replaceAbsurd(ctx, asFloats(out, c), W, H, r->fill))
+                counts += fmt::format("{}{} in {}.{}", counts.empty() ? "" : ", ", n, r->output,
+                                      "RGBA"[std::min(c, 3)]);
+    }
+    // One line per frame: a whole damaged sequence says so on every frame it damages.
+    if (!counts.empty())
+        spdlog::warn(
+            "frame {}: {}: NaN, infinite or absurd (|v| > 1e30) input values replaced by the "
+            "output's fill value, as for a missing channel (docs/layouts.md): {}",
+            frame_, open_.empty() ? path_ : open_.front().second->path(), counts);
+}
+
 void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
     const int W = int(display_.width()), H = int(display_.height());
     const size_t N = size_t(W) * size_t(H);
@@ -993,6 +1031,10 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
         else
             unprojectDepth(ctx, depth, r->rayLength, io.output(r->output), W, H);
     }
+
+    // After the sums (a non-finite Blender pass adds no light to the rest: addRest) and before
+    // the conventions (ids still floats): nothing non-finite or absurd leaves the loader.
+    replaceAbsurdValues(ctx, io, active, W, H);
 
     // Convention fixes, in place: scales (motion y), background depth, then ids to int32.
     for (const Recipe* r : active) {

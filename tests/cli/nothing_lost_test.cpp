@@ -2,8 +2,11 @@
 // nested 55,000 levels, keys written twice, a FIFO where a file is expected, ...). Each case
 // checks the documented exit code (docs/errors.md), the one error line and what it names, and
 // that no input changed.
+#include <OpenEXR/ImfOutputFile.h>
 #include <sys/stat.h>
 
+#include <cmath>
+#include <limits>
 #include <map>
 
 #include "CliRunner.h"
@@ -266,6 +269,75 @@ TEST_F(CliNothingLost, ScenegenIntoARenderFolderNeedsForce) {
 }
 
 // --- frames that are silently wrong ---------------------------------------------------------
+
+/// Sets channel `name` of the EXR at `path` to `value` in the block [x0, x0+10) x [y0, y0+10),
+/// every other channel and the header as they were.
+void damageBlock(const fs::path& path, const std::string& name, float value, int x0, int y0) {
+    Imf::Header header;
+    std::map<std::string, std::vector<float>> planes;
+    int w = 0, h = 0;
+    {
+        Imf::InputFile in(path.c_str());
+        header = in.header();
+        const Imath::Box2i dw = header.dataWindow();
+        w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
+        ASSERT_EQ(dw.min.x, 0);
+        ASSERT_EQ(dw.min.y, 0);
+        Imf::FrameBuffer fb;
+        for (auto it = header.channels().begin(); it != header.channels().end(); ++it) {
+            auto& p = planes[it.name()];
+            p.assign(size_t(w) * size_t(h), 0.f);
+            fb.insert(it.name(), Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(p.data()),
+                                            sizeof(float), sizeof(float) * size_t(w)));
+        }
+        in.setFrameBuffer(fb);
+        in.readPixels(0, h - 1);
+    }
+    ASSERT_TRUE(planes.count(name)) << name;
+    for (int y = y0; y < y0 + 10; ++y)
+        for (int x = x0; x < x0 + 10; ++x) planes[name][size_t(y) * size_t(w) + size_t(x)] = value;
+    Imf::FrameBuffer fb;
+    for (auto& [n, p] : planes)
+        fb.insert(n, Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(p.data()), sizeof(float),
+                                sizeof(float) * size_t(w)));
+    Imf::OutputFile out(path.c_str(), header);
+    out.setFrameBuffer(fb);
+    out.writePixels(h);
+}
+
+/// The largest |value| of an EXR's R, G, B (infinity if any is NaN).
+float largestMagnitude(const fs::path& path) {
+    RgbImage img;
+    std::string why;
+    EXPECT_TRUE(readRgb(path.string(), img, &why)) << path << ": " << why;
+    float m = 0;
+    for (float v : img.rgb)
+        m = std::isnan(v) ? std::numeric_limits<float>::infinity() : std::max(m, std::fabs(v));
+    return m;
+}
+
+TEST_F(CliNothingLost, AbsurdInputValuesAreReplacedCountedAndNeverReachHistory) {
+    const fs::path f2 = work() / "scene" / "noisy" / "frame_0002.exr";
+    damageBlock(f2, "R", std::numeric_limits<float>::quiet_NaN(), 4, 4);
+    damageBlock(f2, "G", -1e38f, 4, 4);
+    damageBlock(f2, "B", std::numeric_limits<float>::infinity(), 4, 4);
+    const float clean = largestMagnitude(work() / "scene" / "noisy" / "frame_0001.exr");
+    auto r = box.run(runArgs((graphDir() / "taa.json").string(),
+                             {"--frames", "1-3", "--output", "out/t.####.exr"}));
+    EXPECT_EQ(r.code, 0) << r.all();
+    EXPECT_FALSE(looksLikeCrash(r.all())) << r.all();
+    // One warning for frame 2, counting each channel's 100 values.
+    for (const char* needle : {"warning: frame 2: scene/noisy/frame_0002.exr: NaN, infinite",
+                               "100 in color.R", "100 in color.G", "100 in color.B"})
+        EXPECT_NE(r.err.find(needle), std::string::npos) << needle << "\n" << r.all();
+    const auto first = r.err.find("NaN, infinite or absurd");
+    EXPECT_EQ(r.err.find("NaN, infinite or absurd", first + 1), std::string::npos) << r.all();
+    // The damage stays in its frame: frames 2 and 3 (whose history holds frame 2) are finite
+    // and in the clean frames' range (TAA blends, it does not amplify).
+    for (int f = 2; f <= 3; ++f)
+        EXPECT_LE(largestMagnitude(work() / "out" / frameName("t.", f, ".exr")), 4 * clean + 1)
+            << "frame " << f;
+}
 
 TEST_F(CliNothingLost, GapInTheSequenceIsACutAndSaid) {
     auto gen = box.run({"scenegen", "--out", "gap", "--width", "32", "--height", "24", "--frames",
