@@ -2,15 +2,14 @@
 
 #include <fnmatch.h>
 
-#include <array>
 #include <cstdint>
 #include <filesystem>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
 
 #include "GraphInternal.h"
+#include "kestrel/InputFiles.h"
 
 namespace kestrel {
 
@@ -46,18 +45,9 @@ constexpr std::uintmax_t kMaxGraphBytes = 16u << 20;
 
 /// Refuses what cannot be a graph before reading it: a device or pipe would be read forever.
 void checkGraphFile(const std::filesystem::path& path) {
-    namespace fs = std::filesystem;
+    checkRegularFile(path, "graph file", "a .json file");
     std::error_code ec;
-    const fs::file_status st = fs::status(path, ec);
-    if (ec || !fs::exists(st))
-        throw Error("cannot read graph file " + path.string() + ": " +
-                    (ec ? ec.message() : std::string("no such file")));
-    if (fs::is_directory(st))
-        throw Error("graph file " + path.string() + " is a directory (expected a .json file)");
-    if (!fs::is_regular_file(st))
-        throw Error("graph file " + path.string() +
-                    " is not a regular file (a device, pipe or socket); expected a .json file");
-    const std::uintmax_t size = fs::file_size(path, ec);
+    const std::uintmax_t size = std::filesystem::file_size(path, ec);
     if (!ec && size > kMaxGraphBytes)
         throw Error("graph file " + path.string() + " is " + std::to_string(size) +
                     " bytes; a graph is at most 16 MiB (is it the right file?)");
@@ -68,6 +58,7 @@ void checkGraphFile(const std::filesystem::path& path) {
 namespace detail {
 
 json parseJsonText(const std::string& text, const std::string& where) {
+    checkJsonText(text, where);  // before anything recursive walks the document
     try {
         return json::parse(text);
     } catch (const json::parse_error& e) {
@@ -89,19 +80,7 @@ json parseJsonText(const std::string& text, const std::string& where) {
 
 std::string readGraphText(const std::filesystem::path& path) {
     checkGraphFile(path);
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw Error("cannot read graph file " + path.string());
-    // Read in chunks and stop past the limit: the file may have grown since it was checked.
-    // (Not one 16 MiB buffer per file: a graph and its includes are a few kilobytes each.)
-    std::string text;
-    std::array<char, 64 * 1024> chunk;
-    while (in.read(chunk.data(), std::streamsize(chunk.size())) || in.gcount() > 0) {
-        text.append(chunk.data(), size_t(in.gcount()));
-        if (text.size() > kMaxGraphBytes)
-            throw Error("graph file " + path.string() +
-                        " is larger than 16 MiB (is it the right file?)");
-    }
-    return text;
+    return readRegularFile(path, "graph file", kMaxGraphBytes, "a .json file");
 }
 
 void checkKeys(const json& obj, const std::set<std::string>& allowed, const std::string& path,
@@ -217,6 +196,7 @@ void applyOverride(GraphDesc& graph, const std::string& assignment) {
     std::string param = assignment.substr(dot + 1, eq - dot - 1);
     std::string text = assignment.substr(eq + 1);
     json value;
+    checkJsonText(text, "--set " + pass + "." + param);
     try {
         value = json::parse(text);
     } catch (const json::parse_error&) {

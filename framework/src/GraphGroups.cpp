@@ -142,6 +142,7 @@ public:
 
     std::map<std::string, GroupDef> groups;
     std::vector<std::string> stack;  ///< display paths of the files being read
+    std::vector<fs::path> files;     ///< every file included or extended
     std::vector<std::string> stackKeys;
 
     static std::string key(const fs::path& p) {
@@ -162,6 +163,7 @@ public:
             diags_.push_back({path, std::string(kind) + " cycle: " + join(cycle, " -> ")});
             return nullptr;
         }
+        files.push_back(file);  // before reading: a file that fails to parse is still the user's
         try {
             docs_.push_back(parseJsonText(readGraphText(file), file.string()));
         } catch (const GraphError& e) {
@@ -767,6 +769,8 @@ void expandDocument(const json& doc, const fs::path& source, GraphDesc& g,
     Assembler assembler(docs, diags);
     Assembly a = assembler.assemble(doc, source, "");
     Expander(g, docs, diags).expandTop(a);
+    if (!source.empty()) g.files.push_back(source);
+    g.files.insert(g.files.end(), docs.files.begin(), docs.files.end());
 }
 
 std::vector<GroupInfo> groupsOfFile(const fs::path& file) {

@@ -1,6 +1,7 @@
 #include "kestrel/SequenceRunner.h"
 
 #include <algorithm>
+#include <cstdint>
 
 namespace kestrel {
 
@@ -15,6 +16,18 @@ std::vector<ScheduledFrame> scheduleWithWarmup(const std::vector<int64_t>& frame
     }
     for (int64_t f : frames) schedule.push_back({f, true});
     return schedule;
+}
+
+/// The gaps of a sequence found on disk: consecutive frames further apart than its step (the
+/// smallest distance between two of them).
+std::vector<std::pair<int64_t, int64_t>> gapsIn(const std::vector<int64_t>& frames) {
+    std::vector<std::pair<int64_t, int64_t>> gaps;
+    if (frames.size() < 2) return gaps;
+    int64_t step = INT64_MAX;
+    for (size_t i = 1; i < frames.size(); ++i) step = std::min(step, frames[i] - frames[i - 1]);
+    for (size_t i = 1; i < frames.size(); ++i)
+        if (frames[i] - frames[i - 1] > step) gaps.push_back({frames[i - 1], frames[i]});
+    return gaps;
 }
 
 bool everySinkWrote(const std::vector<std::pair<std::string, Pass*>>& sinks, int64_t frame) {
@@ -94,6 +107,10 @@ SequenceRunner::SequenceRunner(const CompiledGraph& graph, SequenceOptions optio
     plan_.frames = options_.frames.empty() ? sourceFrames(graph_) : options_.frames;
     if (plan_.frames.empty())
         throw Error("no frames to run: none given and no source lists its frames");
+    if (options_.frames.empty()) {  // a range given is the user's; frames found may have holes
+        plan_.gaps = gapsIn(plan_.frames);
+        for (const auto& gap : plan_.gaps) options_.cuts.insert(gap.second);
+    }
     plan_.schedule = scheduleWithWarmup(plan_.frames, options_.warmup);
 }
 

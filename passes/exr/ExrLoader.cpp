@@ -364,6 +364,23 @@ std::string ExrLoader::filePath(const std::string& role, int64_t frame) const {
     return FramePattern(games202Dir_ + role + games202Tail_).expand(frame);
 }
 
+std::vector<std::pair<std::string, std::string>> ExrLoader::filesRead(int64_t frame) const {
+    if (!pattern_) return {};
+    if (plan_.layout != Layout::Games202) {
+        std::vector<std::pair<std::string, std::string>> files{{pattern_->expand(frame), "path"}};
+        if (cameras_) files.push_back({cameras_->path().string(), "camera"});
+        return files;
+    }
+    // Every sibling the layout names, read or not: an output over normal_1.exr destroys the
+    // user's render whether this graph reads normals or not.
+    std::vector<std::pair<std::string, std::string>> files;
+    for (const char* role : kGames202Roles) files.push_back({filePath(role, frame), "path"});
+    std::string mat = filePath("matrix", frame);
+    if (mat.size() > 4 && mat.compare(mat.size() - 4, 4, ".exr") == 0)
+        files.push_back({mat.substr(0, mat.size() - 4) + ".mat", "path"});
+    return files;
+}
+
 std::vector<int64_t> ExrLoader::availableFrames() const {
     if (pattern_) return pattern_->findFrames();
     if (path_.empty()) return {};
@@ -887,6 +904,44 @@ static void fillZeroVectors(const Factor& fallback, const std::map<ChannelRef, f
             for (int c = 0; c < 3; ++c) o[c][i] = -f[c][i];
 }
 
+namespace {
+
+// No render's light, depth (1e10 on the sky), vector or id comes near this; issue 40 reported
+// -1e38 albedo in one frame leaving values up to 3.8e8 in the history nine frames later.
+constexpr float kAbsurd = 1e30f;
+
+/// Replaces NaN, infinite and absurd (|v| > kAbsurd) values of a plane by `fill`; how many.
+size_t replaceAbsurd(FrameContext& ctx, float* plane, int W, int H, float fill) {
+    std::atomic<size_t> count{0};
+    ctx.parallelRows(H, [&](int y0, int y1) {
+        size_t n = 0;
+        for (float* v = plane + size_t(y0) * size_t(W); v < plane + size_t(y1) * size_t(W); ++v)
+            if (!(std::fabs(*v) <= kAbsurd)) *v = fill, ++n;
+        if (n) count += n;
+    });
+    return count.load();
+}
+
+}  // namespace
+
+void ExrLoader::replaceAbsurdValues(FrameContext& ctx, PassIO& io,
+                                    const std::vector<const Recipe*>& active, int W, int H) {
+    std::string counts;
+    for (const Recipe* r : active) {
+        const ImageView& out = io.output(r->output);
+        for (int c = 0; c < std::max(1, out.channels()); ++c)
+            if (const size_t n = replaceAbsurd(ctx, asFloats(out, c), W, H, r->fill))
+                counts += fmt::format("{}{} in {}.{}", counts.empty() ? "" : ", ", n, r->output,
+                                      "RGBA"[std::min(c, 3)]);
+    }
+    // One line per frame: a whole damaged sequence says so on every frame it damages.
+    if (!counts.empty())
+        spdlog::warn(
+            "frame {}: {}: NaN, infinite or absurd (|v| > 1e30) input values replaced by the "
+            "output's fill value, as for a missing channel (docs/layouts.md): {}",
+            frame_, open_.empty() ? path_ : open_.front().second->path(), counts);
+}
+
 void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
     const int W = int(display_.width()), H = int(display_.height());
     const size_t N = size_t(W) * size_t(H);
@@ -1037,6 +1092,10 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
 
     for (const Recipe* r : active)
         if (r->reflectionOf) reflectionMask(ctx, *r->reflectionOf, dest, io.output(r->output), N);
+
+    // After the sums (a non-finite Blender pass adds no light to the rest: addRest) and before
+    // the conventions (ids still floats): nothing non-finite or absurd leaves the loader.
+    replaceAbsurdValues(ctx, io, active, W, H);
 
     // Convention fixes, in place: scales (motion y), background depth, then ids to int32.
     for (const Recipe* r : active) {

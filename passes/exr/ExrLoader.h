@@ -30,6 +30,7 @@ public:
     std::optional<Extent> beginFrame(FrameContext& ctx) override;
     void execute(FrameContext& ctx, PassIO& io) override;
     std::vector<int64_t> availableFrames() const override;
+    std::vector<std::pair<std::string, std::string>> filesRead(int64_t frame) const override;
     void beginRun(const RunContext& rc) override;
     void endRun() override;
 
@@ -43,6 +44,10 @@ private:
     void ensurePlan(int64_t frame, std::vector<std::string>* notes);
     std::string filePath(const std::string& role, int64_t frame) const;
     ExrInput& openRole(const std::string& role, int64_t frame);
+    /// NaN, infinite and absurd values of this frame's outputs replaced by each output's fill
+    /// value (docs/layouts.md), with one warning per frame counting them by channel.
+    void replaceAbsurdValues(FrameContext& ctx, PassIO& io,
+                             const std::vector<const Recipe*>& active, int W, int H);
     void fillScene(int64_t frame, SceneData& scene);
     /// The jittered* outputs: their albedo's recipe where the render is anti-aliased
     /// (PixelJitter.h, decided once); an output the channels parameter set stays as set.

@@ -2,15 +2,19 @@
 
 #include <algorithm>
 #include <cstring>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <vector>
 
 #include "kestrel/Error.h"
+#include "kestrel/InputFiles.h"
 
 namespace kestrel::exr {
 
 namespace fs = std::filesystem;
+
+// camera.json of a 10,000-frame shot with its objects is a few MB; a GAMES202 .mat is 64 bytes
+// a matrix. Far larger is the wrong file.
+constexpr std::uintmax_t kMaxSidecarBytes = 256u << 20;
 
 Mat4 ndcToPixel(int width, int height) {
     // Applied to clip coordinates before the divide: x' = W/2 x + W/2 w, y' = -H/2 y + H/2 w.
@@ -57,10 +61,10 @@ std::optional<float> statedFilterWidth(const nlohmann::json& j) {
 }  // namespace
 
 BlenderCameras::BlenderCameras(const fs::path& file) : path_(file) {
-    std::ifstream in(file);
-    if (!in) throw Error("cannot open camera file " + file.string());
+    const std::string text = readRegularFile(file, "camera file", kMaxSidecarBytes);
+    checkJsonText(text, file.string());
     try {
-        nlohmann::json j = nlohmann::json::parse(in);
+        nlohmann::json j = nlohmann::json::parse(text);
         int w = j.at("resolution").at(0).get<int>(), h = j.at("resolution").at(1).get<int>();
         Mat4 viewport = ndcToPixel(w, h);
         std::map<std::string, int32_t> ids;
@@ -94,9 +98,7 @@ bool BlenderCameras::fill(int64_t frame, SceneData& scene) const {
 }
 
 void readGames202Matrices(const fs::path& file, SceneData& scene) {
-    std::ifstream in(file, std::ios::binary);
-    if (!in) throw Error("file not found");
-    std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string bytes = readRegularFile(file, "matrix file", kMaxSidecarBytes);
     auto readInt = [&](size_t at) {
         uint32_t v = uint32_t(uint8_t(bytes[at])) | uint32_t(uint8_t(bytes[at + 1])) << 8 |
                      uint32_t(uint8_t(bytes[at + 2])) << 16 |

@@ -8,9 +8,11 @@
 #include <set>
 
 #include "Common.h"
+#include "OutputSafety.h"
 #include "kestrel/Compiler.h"
 #include "kestrel/Error.h"
 #include "kestrel/FramePattern.h"
+#include "kestrel/InputFiles.h"
 #include "kestrel/Log.h"
 
 namespace kestrel::cli {
@@ -76,6 +78,13 @@ std::string taskLine(const FarmTask& t, bool rerun, const TaskLog& log) {
 
 TaskLog readTaskLog(const std::string& path) {
     TaskLog r;
+    // The same rule as every input (InputFiles.h); a log is optional, so what is not a regular
+    // file reads as no log, not an error.
+    try {
+        checkRegularFile(path, "task log");
+    } catch (const Error&) {
+        return r;
+    }
     std::ifstream in(path);
     if (!in) return r;
     r.found = true;
@@ -109,6 +118,12 @@ int checkPlan(const FarmPlan& plan) {
     copt.firstFrame = plan.first;
     auto compiled = compileGraph(desc, plugins->registry, copt);
     const auto writers = planWriters(plan, *compiled);
+    // Temporaries of killed tasks. A task may be running on another node, where its pid means
+    // nothing here: only those untouched for a minute (a frame is written in seconds) go.
+    std::vector<std::string> files;
+    for (const auto& w : writers)
+        for (int64_t f = plan.first; f <= plan.last; ++f) files.push_back(w.path.expand(f));
+    removeStaleTemporaries(files, std::chrono::seconds(60));
 
     std::set<int> rerun;
     int missing = 0, broken = 0;

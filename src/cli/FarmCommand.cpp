@@ -1,5 +1,6 @@
 // kestrel farm plan / check: cut a shot into chunked `kestrel run` tasks for a render farm, and
 // check that every frame they were to write is there and complete (docs/farm.md).
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -8,7 +9,10 @@
 #include "Common.h"
 #include "FarmCheck.h"
 #include "FarmPlan.h"
+#include "OutputSafety.h"
 #include "kestrel/Error.h"
+#include "kestrel/FramePattern.h"
+#include "kestrel/InputFiles.h"
 
 namespace kestrel::cli {
 
@@ -77,9 +81,26 @@ std::vector<std::string> passThrough(const CLI::App* cmd) {
     return extra;
 }
 
+/// The plan file is never a file the plan's tasks read: the graph, its includes, an input frame.
+void checkPlanOut(const FarmPlan& plan, const std::string& out) {
+    FilesRead read;
+    read.addGraph(loadGraphFile(plan.graph));
+    for (const auto& spec : plan.inputs) {
+        const auto eq = spec.find('=');  // name=PATTERN, as `kestrel run --input` reads it
+        const FramePattern p(
+            eq != std::string::npos && eq > 0 && spec.find('/') > eq ? spec.substr(eq + 1) : spec);
+        for (int64_t f = std::max<int64_t>(plan.first - plan.warmup, 0); f <= plan.last; ++f) {
+            read.add(p.expand(f), "--input");
+            if (!p.hasFrameToken()) break;
+        }
+    }
+    read.check(out, "--out", "give another --out");
+}
+
 int planCommand(FarmArgs a) {
     checkRunOptions(a.plan);
     const FarmPlan plan = makePlan(a.plan);
+    if (!a.out.empty()) checkPlanOut(plan, a.out);
     std::string text;
     if (a.format == "slurm")
         text = slurmScript(plan);
@@ -115,11 +136,12 @@ int planCommand(FarmArgs a) {
 int checkCommand(FarmArgs a) {
     FarmPlan plan;
     if (!a.planFile.empty()) {
-        std::ifstream f(a.planFile);
-        if (!f) throw Error("--plan " + a.planFile + ": cannot read it");
+        // A plan is a few hundred bytes a task.
+        const std::string text = readRegularFile(a.planFile, "--plan", 64u << 20);
+        checkJsonText(text, "--plan " + a.planFile);
         nlohmann::json j;
         try {
-            j = nlohmann::json::parse(f);
+            j = nlohmann::json::parse(text);
         } catch (const nlohmann::json::exception& e) {
             throw Error("--plan " + a.planFile + ": not JSON: " + e.what());
         }

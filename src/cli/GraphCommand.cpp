@@ -3,7 +3,9 @@
 
 #include "Commands.h"
 #include "Common.h"
+#include "OutputSafety.h"
 #include "kestrel/Log.h"
+#include "kestrel/SequenceRunner.h"
 
 namespace kestrel::cli {
 
@@ -31,6 +33,12 @@ void addGraphCommand(CLI::App& app, Action& action) {
                 plugins = loadPlugins();
                 g = prepareGraph(*o, plugins->registry);
                 compiled = compileGraph(g, plugins->registry);
+                if (!outFile->empty()) {  // never over the graph, its includes or the frames
+                    FilesRead read;
+                    read.addGraph(g);
+                    read.addSources(*compiled, sourceFrames(*compiled));
+                    read.check(*outFile, "-o", "give another -o");
+                }
             } catch (const GraphError& e) {
                 printGraphError(e, &g);
                 return 2;

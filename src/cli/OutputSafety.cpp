@@ -1,14 +1,19 @@
 #include "OutputSafety.h"
 
+#include <signal.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
+#include <cerrno>
 #include <filesystem>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <utility>
 
 #include "kestrel/Error.h"
 #include "kestrel/FramePattern.h"
+#include "kestrel/Log.h"
 
 namespace kestrel::cli {
 
@@ -118,38 +123,73 @@ struct InputFile {
     std::string name, label;
 };
 
+}  // namespace
+
+/// Files by resolved name and by inode (hard links), the first label kept.
+struct FilesRead::Index {
+    Resolver resolver;
+    std::map<std::string, InputFile> byPath;
+    std::map<std::pair<uint64_t, uint64_t>, InputFile> byInode;
+};
+
+FilesRead::FilesRead() : index_(std::make_unique<Index>()) {}
+FilesRead::~FilesRead() = default;
+
+void FilesRead::add(const std::string& file, const std::string& label) {
+    const FileIdentity id = index_->resolver.identify(file);
+    index_->byPath.emplace(id.canonical, InputFile{file, label});
+    if (id.exists) index_->byInode.emplace(id.inode, InputFile{file, label});
+}
+
+void FilesRead::addGraph(const GraphDesc& graph) {
+    for (const auto& f : graph.files)
+        add(f.string(), f == graph.sourcePath ? "the graph" : "a file the graph includes");
+}
+
+void FilesRead::addSources(const CompiledGraph& compiled, const std::vector<int64_t>& frames) {
+    for (const auto& [name, pass] : compiled.livePasses())
+        for (int64_t f : frames)
+            for (const auto& [file, param] : pass->filesRead(f)) add(file, name + "." + param);
+}
+
+void FilesRead::check(const std::string& file, const std::string& label,
+                      const std::string& fix) const {
+    const FileIdentity id = index_->resolver.identify(file);
+    const InputFile* hit = nullptr;
+    if (auto it = index_->byPath.find(id.canonical); it != index_->byPath.end()) hit = &it->second;
+    if (auto it = index_->byInode.find(id.inode); !hit && id.exists && it != index_->byInode.end())
+        hit = &it->second;
+    if (!hit) return;
+    const bool sameName =
+        fs::path(file).lexically_normal() == fs::path(hit->name).lexically_normal();
+    throw Error("output " + file + " (" + label + ") is " +
+                (sameName ? "read by this command as " + hit->label
+                          : "the input " + hit->name + " (" + hit->label +
+                                ") under another name (a symlink, '..' or a hard link)") +
+                ": writing would destroy it; " + fix);
+}
+
+namespace {
+
 void checkNotInputs(const std::vector<NamedPattern>& inputs,
                     const std::vector<NamedPattern>& outputs, const RunFrames& frames,
-                    Resolver& resolver) {
+                    FilesRead& read) {
     for (const auto& o : outputs)
         for (const auto& i : inputs)
             if (o.pattern.pattern() == i.pattern.pattern())
                 throw Error("output pattern '" + o.pattern.pattern() + "' (" + o.label +
                             ") is the input pattern '" + i.pattern.pattern() + "' (" + i.label +
                             "): writing would overwrite the input frames; give another --output");
-    std::map<std::string, InputFile> byPath;
-    std::map<std::pair<uint64_t, uint64_t>, InputFile> byInode;
     for (const auto& i : inputs)
         for (int64_t f : frames.read) {
-            const std::string name = i.pattern.expand(f);
-            const FileIdentity id = resolver.identify(name);
-            byPath.emplace(id.canonical, InputFile{name, i.label});
-            if (id.exists) byInode.emplace(id.inode, InputFile{name, i.label});
+            read.add(i.pattern.expand(f), i.label);
             if (!i.pattern.hasFrameToken()) break;
         }
     for (const auto& o : outputs)
         for (int64_t f : frames.written) {
-            const std::string name = o.pattern.expand(f);
-            const FileIdentity id = resolver.identify(name);
-            const InputFile* hit = nullptr;
-            if (auto it = byPath.find(id.canonical); it != byPath.end()) hit = &it->second;
-            if (auto it = byInode.find(id.inode); !hit && id.exists && it != byInode.end())
-                hit = &it->second;
-            if (hit)
-                throw Error("output " + name + " (" + o.label + ", frame " + std::to_string(f) +
-                            ") is the input " + hit->name + " (" + hit->label +
-                            ") under another name (a symlink, '..' or a hard link): writing "
-                            "would destroy it; give another --output");
+            read.check(o.pattern.expand(f), o.label + ", frame " + std::to_string(f),
+                       "give another --output");
+            if (!o.pattern.hasFrameToken()) break;
         }
 }
 
@@ -174,15 +214,77 @@ void checkOutputsDistinct(const std::vector<NamedPattern>& outputs, const RunFra
 }  // namespace
 
 void checkOutputsAreSafe(const GraphDesc& graph, const Registry& registry, const RunFrames& frames,
-                         const std::string& reference) {
+                         const std::string& reference, const CompiledGraph* compiled) {
     std::vector<NamedPattern> inputs, outputs;
     collect(graph, registry, false, inputs);
     collect(graph, registry, true, outputs);
     if (!reference.empty()) inputs.push_back({"--reference", FramePattern(reference)});
+    FilesRead read;
+    read.addGraph(graph);
+    if (compiled) read.addSources(*compiled, frames.read);
+    checkNotInputs(inputs, outputs, frames, read);  // first: losing inputs is the worse harm
     Resolver resolver;
-    checkNotInputs(inputs, outputs, frames, resolver);  // first: losing inputs is the worse harm
     checkFrameTokens(outputs, frames.written.size());
     checkOutputsDistinct(outputs, frames, resolver);
+}
+
+std::vector<std::string> outputFiles(const GraphDesc& graph, const Registry& registry,
+                                     const std::vector<int64_t>& frames) {
+    std::vector<NamedPattern> outputs;
+    collect(graph, registry, true, outputs);
+    std::vector<std::string> files;
+    for (const auto& o : outputs)
+        for (int64_t f : frames) {
+            files.push_back(o.pattern.expand(f));
+            if (!o.pattern.hasFrameToken()) break;
+        }
+    return files;
+}
+
+namespace {
+
+/// The pid of ".NAME.tmp-PID" when `entry` is that temporary of NAME, else 0.
+pid_t temporaryOf(const std::string& entry, const std::set<std::string>& names) {
+    const auto at = entry.rfind(".tmp-");
+    if (entry.size() < 2 || entry[0] != '.' || at == std::string::npos || at < 2) return 0;
+    const std::string digits = entry.substr(at + 5);
+    if (digits.empty() || digits.size() > 9 ||
+        digits.find_first_not_of("0123456789") != std::string::npos)
+        return 0;
+    return names.count(entry.substr(1, at - 1)) ? pid_t(std::stol(digits)) : 0;
+}
+
+bool processRunning(pid_t pid) {
+    return pid == ::getpid() || ::kill(pid, 0) == 0 || errno != ESRCH;
+}
+
+}  // namespace
+
+int removeStaleTemporaries(const std::vector<std::string>& files, std::chrono::seconds minAge) {
+    std::map<fs::path, std::set<std::string>> byFolder;
+    for (const auto& f : files) {
+        const fs::path p(f);
+        byFolder[p.parent_path().empty() ? fs::path(".") : p.parent_path()].insert(
+            p.filename().string());
+    }
+    int removed = 0;
+    const auto now = fs::file_time_type::clock::now();
+    for (const auto& [folder, names] : byFolder) {
+        std::error_code ec;
+        for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
+            const pid_t pid = temporaryOf(it->path().filename().string(), names);
+            if (pid <= 0 || processRunning(pid)) continue;
+            std::error_code tec;
+            const auto written = fs::last_write_time(it->path(), tec);
+            if (tec || now - written < minAge) continue;
+            if (fs::remove(it->path(), tec)) {
+                spdlog::info("removed {}: a temporary file of process {}, which is gone",
+                             it->path().string(), pid);
+                ++removed;
+            }
+        }
+    }
+    return removed;
 }
 
 }  // namespace kestrel::cli

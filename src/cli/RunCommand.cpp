@@ -30,9 +30,12 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::atomic<bool> gInterrupted{false};
-extern "C" void onInterrupt(int) {
-    gInterrupted.store(true);
+// The signal that asked the run to stop (0: none). SIGTERM (Slurm's time limit, Deadline's
+// cancel, `kill`) is handled as SIGINT: the frame in progress is finished, its temporary file
+// renamed, and the exit code says which signal (128 + its number, as a shell reports it).
+std::atomic<int> gInterrupted{0};
+extern "C" void onInterrupt(int sig) {
+    gInterrupted.store(sig);
 }
 
 struct RunOptions {
@@ -108,6 +111,11 @@ public:
     Progress& progress() { return progress_; }
 
     void starting(const SequencePlan& plan) override {
+        for (const auto& [before, after] : plan.gaps)
+            spdlog::warn(
+                "frames {} and {} of the input are not consecutive (a frame missing, or not a "
+                "file): history reset at frame {}, as at a camera cut",
+                before, after, after);
         if (plan.everythingWritten)
             spdlog::info("--resume: every frame is already written");
         else if (plan.alreadyWritten > 0)
@@ -246,7 +254,7 @@ int runGraph(const RunOptions& o) {
     reference.pattern = o.reference;
     reference.layer = o.refLayer;
     reference.measured = measured;
-    so.stop = [&reference] { return gInterrupted.load() || reference.failed; };
+    so.stop = [&reference] { return gInterrupted.load() != 0 || reference.failed; };
     SequenceRunner runner(*compiled, so);
     try {
         RunFrames planned;
@@ -254,7 +262,12 @@ int runGraph(const RunOptions& o) {
             planned.read.push_back(f.frame);
             if (f.write) planned.written.push_back(f.frame);
         }
-        checkOutputsAreSafe(g, plugins->registry, planned, o.reference);
+        checkOutputsAreSafe(g, plugins->registry, planned, o.reference, compiled.get());
+        // A run killed with kill -9 (or a power loss) left its temporary of the frame it was
+        // writing; the frames this run writes are its own to clean.
+        if (o.resume)
+            removeStaleTemporaries(outputFiles(g, plugins->registry, planned.written),
+                                   std::chrono::seconds(0));
     } catch (const Error& e) {
         std::cerr << "error: " << e.what() << "\n";
         return 2;
@@ -267,11 +280,13 @@ int runGraph(const RunOptions& o) {
     info.kestrelVersion = KESTREL_VERSION;
     Executor exec(*compiled, parallel, info, size);
 
-    gInterrupted = false;
-    auto oldHandler = std::signal(SIGINT, onInterrupt);
+    gInterrupted = 0;
+    auto oldInt = std::signal(SIGINT, onInterrupt);
+    auto oldTerm = std::signal(SIGTERM, onInterrupt);
     RunLog log(reference);
     const SequenceResult result = runner.run(exec, &log);
-    std::signal(SIGINT, oldHandler);
+    std::signal(SIGINT, oldInt);
+    std::signal(SIGTERM, oldTerm);
     int rc = 0;
     if (result.end == SequenceEnd::Failed) {
         log.progress().clear();
@@ -281,9 +296,10 @@ int runGraph(const RunOptions& o) {
         rc = 1;  // RunLog printed why
     } else if (result.end == SequenceEnd::Stopped) {
         log.progress().clear();
-        spdlog::warn("interrupted: stopped after frame {}; every written frame is complete",
-                     result.lastFrame);
-        rc = 130;
+        const int sig = gInterrupted.load();
+        spdlog::warn("interrupted ({}): stopped after frame {}; every written frame is complete",
+                     sig == SIGTERM ? "SIGTERM" : "SIGINT", result.lastFrame);
+        rc = 128 + (sig == SIGTERM ? SIGTERM : SIGINT);
     }
     log.progress().finish();
     logSummary(result, exec, *compiled, reference);

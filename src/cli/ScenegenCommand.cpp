@@ -2,6 +2,7 @@
 // picks one of the zoo's named configurations, whose settings the other options override.
 #include <scenegen/SceneGen.h>
 
+#include <filesystem>
 #include <iostream>
 #include <sstream>
 
@@ -40,6 +41,14 @@ void overrideGiven(scenegen::SceneOptions& zoo, const scenegen::SceneOptions& gi
     zoo.threads = given.threads;
 }
 
+/// Whether `dir` does not exist, or is a folder with nothing in it. A render folder scenegen did
+/// not write this time is the user's: scenegen does not replace its frames unless told to.
+bool isEmptyOrAbsent(const std::string& dir) {
+    std::error_code ec;
+    if (!std::filesystem::exists(dir, ec)) return true;
+    return std::filesystem::is_directory(dir, ec) && std::filesystem::is_empty(dir, ec);
+}
+
 }  // namespace
 
 void addScenegenCommand(CLI::App& app, Action& action) {
@@ -51,6 +60,7 @@ void addScenegenCommand(CLI::App& app, Action& action) {
         std::string layout = "canonical";
         std::string omit;
         std::string out;
+        bool force = false;
     };
     auto o = std::make_shared<Opts>();
     std::vector<std::string> names;
@@ -84,6 +94,8 @@ void addScenegenCommand(CLI::App& app, Action& action) {
                     "Scale of the radiance (every light AOV and the reference): renders come in "
                     "their own units; in (0, 1e9]");
     cmd->add_option("--threads", o->scene.threads, "Threads (default: all cores)");
+    cmd->add_flag("--force", o->force,
+                  "Write into an --out folder that is not empty (its frames are replaced)");
     cmd->callback([&action, o, cmd] {
         if (!o->sceneName.empty()) {
             scenegen::SceneOptions zoo = scenegen::zooScene(o->sceneName).options;
@@ -96,6 +108,12 @@ void addScenegenCommand(CLI::App& app, Action& action) {
             std::stringstream ss(o->omit);
             for (std::string item; std::getline(ss, item, ',');)
                 if (!item.empty()) o->scene.omit.insert(item);
+            if (!o->force && !isEmptyOrAbsent(o->out)) {
+                std::cerr << "error: scenegen --out " << o->out
+                          << ": the folder is not empty (a render?): its frames would be "
+                             "replaced; give a new folder, or --force\n";
+                return 2;
+            }
             try {
                 auto stats = scenegen::writeSequence(o->scene, o->out, [](int done, int total) {
                     spdlog::debug("scenegen: frame {}/{}", done, total);

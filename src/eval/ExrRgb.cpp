@@ -5,6 +5,7 @@
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
 #include <kestrel/Error.h>
+#include <kestrel/InputFiles.h>
 
 #include <algorithm>
 #include <map>
@@ -72,11 +73,11 @@ std::string chooseRgbLayer(const std::vector<std::string>& channelNames, std::st
 
 Image readExrRgb(const std::filesystem::path& path, std::string_view layer) {
     const std::string where = "'" + path.string() + "'";
-    std::error_code ec;
-    if (!std::filesystem::exists(path, ec))
-        throw FrameError("cannot read " + where + ": no such file");
-    if (std::filesystem::is_directory(path, ec))
-        throw FrameError("cannot read " + where + ": is a directory");
+    try {
+        checkRegularFile(path, "EXR file");  // a FIFO would block the open forever
+    } catch (const Error& e) {
+        throw FrameError(e.what());
+    }
     try {
         Imf::InputFile file(path.c_str());
         const Imf::Header& header = file.header();

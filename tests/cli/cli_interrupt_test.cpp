@@ -1,5 +1,7 @@
-// Ctrl-C during `kestrel run`: the run stops after the frame in progress, exits with 130 (the
-// shell's code for SIGINT), and leaves only complete EXR files and no temporary files behind.
+// Ctrl-C (SIGINT) or SIGTERM (Slurm's time limit, Deadline's cancel) during `kestrel run`: the
+// run stops after the frame in progress, exits with 130 or 143 (the shell's codes for them), and
+// leaves only complete EXR files and no temporary files behind. `--resume` removes the
+// temporaries a killed run (kill -9) left.
 #include <fcntl.h>
 
 #include "CliRunner.h"
@@ -31,9 +33,9 @@ pid_t spawnCli(const fs::path& cwd, const std::vector<std::string>& args, const 
     ::_exit(127);
 }
 
-}  // namespace
-
-TEST(CliInterrupt, SigintStopsCleanlyAfterAFrame) {
+/// Runs slow.json over 200 frames, sends `sig` once the first frame is on disk, and checks the
+/// run stopped cleanly with exit code `code`.
+void stopsCleanlyOn(int sig, int code) {
     Sandbox box;
     // One 64x48 frame, linked as frames 1..200: a run long enough (three A-Trous passes, one
     // thread) to be interrupted mid-way without rendering 200 frames.
@@ -66,12 +68,12 @@ TEST(CliInterrupt, SigintStopsCleanlyAfterAFrame) {
     }
     ASSERT_FALSE(exited) << "kestrel ended before writing a frame:\n" << readText(log);
     ASSERT_TRUE(sawFrame) << readText(log);
-    ::kill(pid, SIGINT);
+    ::kill(pid, sig);
     ASSERT_EQ(::waitpid(pid, &status, 0), pid);
     const std::string text = readText(log);
 
     ASSERT_TRUE(WIFEXITED(status)) << "killed by signal " << WTERMSIG(status) << "\n" << text;
-    EXPECT_EQ(WEXITSTATUS(status), 130) << text;
+    EXPECT_EQ(WEXITSTATUS(status), code) << text;
     EXPECT_NE(text.find("interrupted"), std::string::npos) << text;
     EXPECT_FALSE(looksLikeCrash(text)) << text;
 
@@ -88,4 +90,38 @@ TEST(CliInterrupt, SigintStopsCleanlyAfterAFrame) {
     // Frames are written in order and none is skipped: 1..written.
     for (int f = 1; f <= written; ++f)
         EXPECT_TRUE(fs::exists(out / frameName("s.", f, ".exr"))) << f;
+}
+
+}  // namespace
+
+TEST(CliInterrupt, SigintStopsCleanlyAfterAFrame) {
+    stopsCleanlyOn(SIGINT, 130);
+}
+
+TEST(CliInterrupt, SigtermStopsCleanlyAfterAFrame) {
+    stopsCleanlyOn(SIGTERM, 143);
+}
+
+TEST(CliInterrupt, ResumeRemovesTemporariesOfDeadProcesses) {
+    Sandbox box;
+    if (!makeScene(box, box.work() / "scene", 32, 24, 3))
+        GTEST_SKIP() << "no scenegen in this build";
+    // A process that has ended: its pid is what a run killed with kill -9 left in the name.
+    const pid_t dead = ::fork();
+    if (dead == 0) ::_exit(0);
+    ASSERT_EQ(::waitpid(dead, nullptr, 0), dead);
+    const fs::path out = box.work() / "out";
+    const fs::path stale = out / (".c.0002.exr.tmp-" + std::to_string(dead));
+    // A live writer's (this test's own pid): another run may be writing it right now.
+    const fs::path live = out / (".c.0003.exr.tmp-" + std::to_string(::getpid()));
+    writeText(stale, "half a frame");
+    writeText(live, "a frame being written");
+    auto r = box.run({"run", (graphDir() / "copy.json").string(), "--input",
+                      "scene/noisy/frame_####.exr", "--output", "out/c.####.exr", "--frames", "1-3",
+                      "--resume"});
+    EXPECT_EQ(r.code, 0) << r.all();
+    EXPECT_FALSE(fs::exists(stale)) << r.all();
+    EXPECT_TRUE(fs::exists(live)) << r.all();
+    EXPECT_NE(r.err.find(stale.filename().string()), std::string::npos) << r.all();
+    EXPECT_EQ(countFiles(out, ".exr"), 3);
 }

@@ -74,6 +74,8 @@ struct GraphDesc {
     std::vector<EdgeDesc> edges;
     std::vector<std::string> outputs;      ///< "pass.port" or "pass"
     std::vector<GroupInstance> instances;  ///< in expansion order (outer before inner)
+    /// The graph file and every file it includes or extends: what no output may replace.
+    std::vector<std::filesystem::path> files = {};
 };
 
 /// Parses JSON text. Syntax errors report line and column; structural errors (missing keys,

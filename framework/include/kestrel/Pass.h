@@ -12,6 +12,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "kestrel/Error.h"
@@ -174,6 +175,14 @@ public:
                               std::span<PassIO* const> ios);
     /// Sources: frame numbers available when the user gives no range (empty: unknown).
     virtual std::vector<int64_t> availableFrames() const { return {}; }
+    /// Sources: every file this frame reads, the sidecars included (GAMES202's normal_, depth_
+    /// ... files and matrix_N.mat, a Blender render's camera.json), each with the parameter
+    /// that names it ("path", "camera"), so that no output of the run replaces one. Known
+    /// after resolve(); empty: the pass reads no files.
+    virtual std::vector<std::pair<std::string, std::string>> filesRead(
+        int64_t /*frameNumber*/) const {
+        return {};
+    }
     /// Sinks: whether this frame's output already exists (for --resume).
     virtual bool frameWritten(int64_t /*frameNumber*/) const { return false; }
     /// Sinks: called at the end of a run (close files, print summaries).

@@ -9,6 +9,7 @@
 #include <functional>
 #include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "kestrel/Compiler.h"
@@ -52,6 +53,10 @@ struct SequencePlan {
     size_t alreadyWritten = 0;             ///< resume: frames found complete and not rewritten
     size_t replayed = 0;                   ///< resume: frames replayed before the first missing
     bool everythingWritten = false;        ///< resume: no frame is missing, nothing runs
+    /// Without a range given: the frames found on both sides of each gap in the sequence (a
+    /// missing frame, a folder named like one). History is reset before the second, as at a
+    /// camera cut: carried across the gap it would blend two moments of the shot.
+    std::vector<std::pair<int64_t, int64_t>> gaps;
 };
 
 struct FrameRecord {

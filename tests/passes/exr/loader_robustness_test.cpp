@@ -16,12 +16,16 @@
 #include <OpenEXR/ImfStringVectorAttribute.h>
 #include <OpenEXR/ImfTimeCodeAttribute.h>
 #include <OpenEXR/ImfVecAttribute.h>
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <sys/resource.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstring>
 #include <fstream>
+#include <thread>
 
 #include "ExrLoader.h"
 #include "exr_test_util.h"
@@ -350,5 +354,54 @@ TEST(ExrLoaderRobustness, BadChannelsParameterNamesTheItem) {
         FAIL() << "no error";
     } catch (const kestrel::Error& e) {
         EXPECT_NE(std::string(e.what()).find("'albedo=Nope'"), std::string::npos) << e.what();
+    }
+}
+
+namespace {
+/// Opens the FIFO at `path` for writing after `seconds` and closes it, so that a reader blocked
+/// on it (the defect under test) ends with EOF and fails the test instead of hanging it.
+std::thread unblockLater(const fs::path& path, int seconds) {
+    return std::thread([path, seconds] {
+        for (int i = 0; i < seconds * 10; ++i) {
+            std::this_thread::sleep_for(std::chrono::milliseconds(100));
+            if (!fs::exists(path)) return;  // removed: the reader never opened it
+        }
+        const int fd = ::open(path.c_str(), O_WRONLY | O_NONBLOCK);
+        if (fd >= 0) ::close(fd);
+    });
+}
+
+/// The message of the Error `fn` throws ("" if none).
+template <class Fn>
+std::string errorOf(Fn fn) {
+    try {
+        fn();
+    } catch (const kestrel::Error& e) {
+        return e.what();
+    }
+    return "";
+}
+}  // namespace
+
+// Issue 40 item 9: a FIFO where camera.json or a GAMES202 .mat is expected blocked the read
+// forever; every reader refuses what is not a regular file (kestrel/InputFiles.h).
+TEST(ExrLoaderRobustness, FifoSidecarsAreRefusedWithoutReading) {
+    TempDir dir("exr-fifo-sidecars");
+    for (const char* name : {"camera.json", "matrix_1.mat"}) {
+        const fs::path fifo = dir.path / name;
+        ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+        std::thread guard = unblockLater(fifo, 5);
+        const std::string msg = errorOf([&] {
+            if (std::string(name) == "camera.json") {
+                kestrel::exr::BlenderCameras cameras(fifo);
+            } else {
+                kestrel::SceneData scene;
+                kestrel::exr::readGames202Matrices(fifo, scene);
+            }
+        });
+        fs::remove(fifo);
+        guard.join();
+        EXPECT_NE(msg.find(fifo.string()), std::string::npos) << msg;
+        EXPECT_NE(msg.find("not a regular file"), std::string::npos) << msg;
     }
 }

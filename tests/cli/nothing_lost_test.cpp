@@ -1,0 +1,378 @@
+// Issue 40, "Nothing lost anywhere": the inputs an adversarial user gives every command (JSON
+// nested 55,000 levels, keys written twice, a FIFO where a file is expected, ...). Each case
+// checks the documented exit code (docs/errors.md), the one error line and what it names, and
+// that no input changed.
+#include <OpenEXR/ImfOutputFile.h>
+#include <sys/stat.h>
+
+#include <cmath>
+#include <limits>
+#include <map>
+
+#include "CliRunner.h"
+#include "ExrCheck.h"
+
+using namespace clitest;
+
+namespace {
+
+/// FNV-1a of every regular file below `dir` (symlinks and FIFOs not followed), by relative path.
+std::map<std::string, uint64_t> fileSums(const fs::path& dir) {
+    std::map<std::string, uint64_t> sums;
+    for (const auto& e : fs::recursive_directory_iterator(dir)) {
+        if (!e.is_regular_file() || e.is_symlink()) continue;
+        uint64_t h = 1469598103934665603ull;
+        for (unsigned char c : readText(e.path())) h = (h ^ c) * 1099511628211ull;
+        sums[fs::relative(e.path(), dir).string()] = h;
+    }
+    return sums;
+}
+
+/// Exactly one "error:" line, containing every needle, and no crash.
+void expectOneErrorLine(const CliResult& r, std::initializer_list<std::string> needles) {
+    auto lines = r.errorLines();
+    ASSERT_EQ(lines.size(), 1u) << r.all();
+    for (const auto& n : needles)
+        EXPECT_NE(lines[0].find(n), std::string::npos) << "missing '" << n << "' in: " << lines[0];
+    EXPECT_FALSE(looksLikeCrash(r.all())) << r.all();
+}
+
+/// tests/cli/graphs/copy.json with `tonemapParams` as the tone map's parameters (JSON text).
+std::string copyGraphWith(const std::string& tonemapParams) {
+    return R"({"kestrel": 1, "name": "copy", "passes": [
+  {"name": "input", "type": "ExrLoader", "params": {}},
+  {"name": "tonemap", "type": "ToneMap", "params": )" +
+           tonemapParams + R"(},
+  {"name": "output", "type": "ExrWriter", "params": {"path": "out/copy.####.exr"}}],
+ "edges": [{"from": "input.color", "to": "tonemap.color"},
+           {"from": "tonemap.color", "to": "output.color"}]})";
+}
+
+/// `[[[...0...]]]`, `levels` deep: 55,000 levels (110 KB) overflowed the stack of every command.
+std::string nested(int levels) {
+    return std::string(size_t(levels), '[') + "0" + std::string(size_t(levels), ']');
+}
+
+class CliNothingLost : public ::testing::Test {
+protected:
+    void SetUp() override {
+        // 32x24, 3 frames: about 0.05 s to generate.
+        if (!makeScene(box, box.work() / "scene", 32, 24, 3))
+            GTEST_SKIP() << "no scenegen in this build";
+        before = fileSums(box.work() / "scene");
+    }
+    std::vector<std::string> runArgs(const std::string& graph, std::vector<std::string> extra) {
+        std::vector<std::string> args = {
+            "run", graph, "--input", "scene/noisy/frame_####.exr", "--threads", "2"};
+        args.insert(args.end(), extra.begin(), extra.end());
+        return args;
+    }
+    void expectInputsUntouched() {
+        EXPECT_EQ(fileSums(box.work() / "scene"), before) << "an input frame changed";
+    }
+    fs::path work() const { return box.work(); }
+
+    Sandbox box;
+    std::map<std::string, uint64_t> before;
+};
+
+// --- JSON: depth and duplicate keys, checked where every JSON text is parsed --------------
+
+TEST_F(CliNothingLost, DeeplyNestedJsonIsRefusedByEveryCommand) {
+    writeText(work() / "deep" / "deep.json",
+              copyGraphWith(R"({"exposure": )" + nested(55000) + "}"));
+    const std::vector<std::vector<std::string>> commands = {
+        {"validate", "deep/deep.json"},
+        {"graph", "deep/deep.json", "--dot"},
+        runArgs("deep/deep.json", {"--frames", "1", "--output", "out/c.####.exr"}),
+        {"passes", "--graphs", "deep"},
+        {"bench", "deep/deep.json", "--input", "scene/noisy/frame_####.exr"},
+    };
+    for (const auto& args : commands) {
+        SCOPED_TRACE(args[0]);
+        auto r = box.runWithin(60, args);
+        EXPECT_EQ(r.code, 2) << r.all();
+        expectOneErrorLine(
+            r, {"deep.json", "nested deeper than 256 levels", "passes[1].params.exposure[0]"});
+    }
+    EXPECT_FALSE(fs::exists(work() / "out"));
+    expectInputsUntouched();
+}
+
+TEST_F(CliNothingLost, DeeplyNestedSetValueIsRefused) {
+    auto r = box.runWithin(60, runArgs((graphDir() / "copy.json").string(),
+                                       {"--frames", "1", "--output", "out/c.####.exr", "--set",
+                                        "tonemap.exposure=" + nested(50000)}));
+    EXPECT_EQ(r.code, 2) << r.all();
+    expectOneErrorLine(r, {"--set tonemap.exposure", "nested deeper than 256 levels"});
+    EXPECT_FALSE(fs::exists(work() / "out"));
+}
+
+TEST_F(CliNothingLost, NestingWithinTheLimitIsOnlyAParameterError) {
+    writeText(work() / "ok.json", copyGraphWith(R"({"exposure": )" + nested(200) + "}"));
+    auto r = box.run({"validate", "ok.json"});
+    EXPECT_EQ(r.code, 2) << r.all();
+    expectOneErrorLine(r, {"passes[1].params.exposure", "expected number"});
+}
+
+TEST_F(CliNothingLost, DuplicateKeyIsRefusedWithItsJsonPath) {
+    writeText(work() / "dup.json", copyGraphWith(R"({"exposure": 0.0, "exposure": 2.0})"));
+    for (const auto& args : std::vector<std::vector<std::string>>{
+             {"validate", "dup.json"},
+             runArgs("dup.json", {"--frames", "1", "--output", "out/c.####.exr"})}) {
+        SCOPED_TRACE(args[0]);
+        auto r = box.run(args);
+        EXPECT_EQ(r.code, 2) << r.all();
+        expectOneErrorLine(r,
+                           {"dup.json", "duplicate key 'exposure'", "passes[1].params.exposure"});
+    }
+    EXPECT_FALSE(fs::exists(work() / "out"));
+}
+
+TEST_F(CliNothingLost, DuplicateKeyInAFarmPlanIsRefused) {
+    writeText(work() / "plan.json", R"({"tasks": [], "tasks": []})");
+    auto r = box.run({"farm", "check", "--plan", "plan.json"});
+    EXPECT_EQ(r.code, 2) << r.all();
+    expectOneErrorLine(r, {"plan.json", "duplicate key 'tasks'"});
+}
+
+// --- readers refuse what is not a regular file (a FIFO blocked the read forever) ----------
+
+/// A FIFO at `p` that nobody writes: opening it for reading blocks.
+void makeFifo(const fs::path& p) {
+    fs::create_directories(p.parent_path());
+    ASSERT_EQ(::mkfifo(p.c_str(), 0600), 0) << p;
+}
+
+TEST_F(CliNothingLost, FifoAsReferenceIsRefused) {
+    makeFifo(work() / "ref" / "frame_0001.exr");
+    auto r = box.runWithin(30, runArgs((graphDir() / "copy.json").string(),
+                                       {"--frames", "1", "--output", "out/c.####.exr",
+                                        "--reference", "ref/frame_####.exr"}));
+    EXPECT_EQ(r.code, 1) << r.all();
+    expectOneErrorLine(r, {"ref/frame_0001.exr", "not a regular file"});
+
+    auto c = box.runWithin(30, {"compare", "scene/noisy/frame_0001.exr", "ref/frame_0001.exr"});
+    EXPECT_NE(c.code, 0) << c.all();
+    EXPECT_NE(c.code, 128 + 9) << "killed by the time limit: the FIFO was read\n" << c.all();
+    expectOneErrorLine(c, {"ref/frame_0001.exr", "not a regular file"});
+    expectInputsUntouched();
+}
+
+TEST_F(CliNothingLost, FifoAsFarmPlanIsRefused) {
+    makeFifo(work() / "plan.json");
+    auto r = box.runWithin(30, {"farm", "check", "--plan", "plan.json"});
+    EXPECT_EQ(r.code, 2) << r.all();
+    expectOneErrorLine(r, {"--plan plan.json", "not a regular file"});
+}
+
+// --- GAMES202: every sibling file is an input -------------------------------------------
+
+class CliNothingLostGames202 : public CliNothingLost {
+protected:
+    void SetUp() override {
+        CliNothingLost::SetUp();
+        if (IsSkipped()) return;
+        // 32x24, frames 1-3 in G/: beauty_N.exr, normal_, position_, depth_, ID_, matrix_N.mat.
+        auto r = box.run({"scenegen", "--layout", "games202", "--out", "G", "--width", "32",
+                          "--height", "24", "--frames", "3", "--spp", "2"});
+        ASSERT_EQ(r.code, 0) << r.all();
+        ASSERT_TRUE(fs::exists(work() / "G" / "matrix_1.mat"));
+        games = fileSums(work() / "G");
+    }
+    CliResult runGames(const std::string& input, const std::string& output) {
+        return box.run({"run",
+                        (fs::path(KESTREL_SOURCE_DIR) / "graphs" / "games202-jbf.json").string(),
+                        "--input", input, "--output", output, "--frames", "1-3", "--threads", "2"});
+    }
+    std::map<std::string, uint64_t> games;
+};
+
+TEST_F(CliNothingLostGames202, OutputOverASiblingFileIsRefused) {
+    const std::vector<std::pair<std::string, std::string>> cases = {
+        {"G", "G/beauty_%d.exr"},
+        {"G", "G/normal_%d.exr"},
+        {"G", "G/matrix_%d.mat"},
+        {"G/beauty_%d.exr", "G/depth_%d.exr"},
+        {"G/beauty_%d.exr", "G/../G/ID_%d.exr"},
+    };
+    for (const auto& [input, output] : cases) {
+        SCOPED_TRACE(input + " -> " + output);
+        auto r = runGames(input, output);
+        EXPECT_EQ(r.code, 2) << r.all();
+        expectOneErrorLine(r, {"frame 1", "input.path", "writing would destroy it"});
+        EXPECT_EQ(fileSums(work() / "G"), games) << "a GAMES202 input file changed";
+    }
+}
+
+TEST_F(CliNothingLostGames202, FifoAsMatrixFileIsRefused) {
+    fs::remove(work() / "G" / "matrix_2.mat");
+    makeFifo(work() / "G" / "matrix_2.mat");
+    auto r = box.runWithin(
+        60, {"run", (fs::path(KESTREL_SOURCE_DIR) / "graphs" / "games202-jbf.json").string(),
+             "--input", "G", "--output", "out/g_%d.exr", "--frames", "1-3", "--threads", "2"});
+    EXPECT_EQ(r.code, 1) << r.all();
+    expectOneErrorLine(r, {"G/matrix_2.mat", "not a regular file"});
+}
+
+// --- no command writes a file it reads -----------------------------------------------------
+
+TEST_F(CliNothingLost, OneFrameOutputOverTheGraphOrAnIncludeIsRefused) {
+    fs::copy_file(graphDir() / "copy.json", work() / "g.json");
+    writeText(work() / "lib" / "empty.json", R"({"kestrel": 1, "groups": {}})");
+    writeText(work() / "inc.json",
+              R"({"kestrel": 1, "include": ["lib/empty.json"], "extends": "g.json"})");
+    const auto graphs = fileSums(work());
+    for (const auto& [graph, output] : std::vector<std::pair<std::string, std::string>>{
+             {"g.json", "g.json"}, {"inc.json", "lib/empty.json"}, {"inc.json", "./g.json"}}) {
+        SCOPED_TRACE(graph + " -> " + output);
+        auto r = box.run(runArgs(graph, {"--frames", "1", "--output", output}));
+        EXPECT_EQ(r.code, 2) << r.all();
+        expectOneErrorLine(r, {output, "writing would destroy it"});
+        EXPECT_EQ(fileSums(work()), graphs);
+    }
+}
+
+TEST_F(CliNothingLost, GraphDotOverItsGraphOrAnInputFrameIsRefused) {
+    fs::copy_file(graphDir() / "copy.json", work() / "g.json");
+    const auto graphs = fileSums(work());
+    for (const std::string out : {"g.json", "scene/noisy/frame_0002.exr"}) {
+        SCOPED_TRACE(out);
+        auto r = box.run(
+            {"graph", "g.json", "--input", "scene/noisy/frame_####.exr", "--dot", "-o", out});
+        EXPECT_EQ(r.code, 2) << r.all();
+        expectOneErrorLine(r, {"output " + out, "(-o)", "writing would destroy it"});
+        EXPECT_EQ(fileSums(work()), graphs);
+    }
+    auto ok = box.run({"graph", "g.json", "--dot", "-o", "g.dot"});
+    EXPECT_EQ(ok.code, 0) << ok.all();
+}
+
+TEST_F(CliNothingLost, FarmPlanOverAnInputFrameIsRefused) {
+    auto r = box.run({"farm", "plan", (graphDir() / "copy.json").string(), "--input",
+                      "scene/noisy/frame_####.exr", "--output", "out/c.####.exr", "--frames", "1-3",
+                      "--chunk", "2", "--out", "scene/noisy/frame_0001.exr"});
+    EXPECT_EQ(r.code, 2) << r.all();
+    expectOneErrorLine(r, {"scene/noisy/frame_0001.exr", "(--out)", "--input"});
+    expectInputsUntouched();
+}
+
+TEST_F(CliNothingLost, ScenegenIntoARenderFolderNeedsForce) {
+    auto r = box.run({"scenegen", "--out", "scene", "--width", "16", "--height", "12", "--frames",
+                      "1", "--spp", "1", "--seed", "7"});
+    EXPECT_EQ(r.code, 2) << r.all();
+    expectOneErrorLine(r, {"--out scene", "not empty", "--force"});
+    expectInputsUntouched();
+    auto forced = box.run({"scenegen", "--out", "scene", "--width", "16", "--height", "12",
+                           "--frames", "1", "--spp", "1", "--seed", "7", "--force"});
+    EXPECT_EQ(forced.code, 0) << forced.all();
+}
+
+// --- frames that are silently wrong ---------------------------------------------------------
+
+/// Sets channel `name` of the EXR at `path` to `value` in the block [x0, x0+10) x [y0, y0+10),
+/// every other channel and the header as they were.
+void damageBlock(const fs::path& path, const std::string& name, float value, int x0, int y0) {
+    Imf::Header header;
+    std::map<std::string, std::vector<float>> planes;
+    int w = 0, h = 0;
+    {
+        Imf::InputFile in(path.c_str());
+        header = in.header();
+        const Imath::Box2i dw = header.dataWindow();
+        w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
+        ASSERT_EQ(dw.min.x, 0);
+        ASSERT_EQ(dw.min.y, 0);
+        Imf::FrameBuffer fb;
+        for (auto it = header.channels().begin(); it != header.channels().end(); ++it) {
+            auto& p = planes[it.name()];
+            p.assign(size_t(w) * size_t(h), 0.f);
+            fb.insert(it.name(), Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(p.data()),
+                                            sizeof(float), sizeof(float) * size_t(w)));
+        }
+        in.setFrameBuffer(fb);
+        in.readPixels(0, h - 1);
+    }
+    ASSERT_TRUE(planes.count(name)) << name;
+    for (int y = y0; y < y0 + 10; ++y)
+        for (int x = x0; x < x0 + 10; ++x) planes[name][size_t(y) * size_t(w) + size_t(x)] = value;
+    Imf::FrameBuffer fb;
+    for (auto& [n, p] : planes)
+        fb.insert(n, Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(p.data()), sizeof(float),
+                                sizeof(float) * size_t(w)));
+    Imf::OutputFile out(path.c_str(), header);
+    out.setFrameBuffer(fb);
+    out.writePixels(h);
+}
+
+/// The largest |value| of an EXR's R, G, B (infinity if any is NaN).
+float largestMagnitude(const fs::path& path) {
+    RgbImage img;
+    std::string why;
+    EXPECT_TRUE(readRgb(path.string(), img, &why)) << path << ": " << why;
+    float m = 0;
+    for (float v : img.rgb)
+        m = std::isnan(v) ? std::numeric_limits<float>::infinity() : std::max(m, std::fabs(v));
+    return m;
+}
+
+TEST_F(CliNothingLost, AbsurdInputValuesAreReplacedCountedAndNeverReachHistory) {
+    const fs::path f2 = work() / "scene" / "noisy" / "frame_0002.exr";
+    damageBlock(f2, "R", std::numeric_limits<float>::quiet_NaN(), 4, 4);
+    damageBlock(f2, "G", -1e38f, 4, 4);
+    damageBlock(f2, "B", std::numeric_limits<float>::infinity(), 4, 4);
+    const float clean = largestMagnitude(work() / "scene" / "noisy" / "frame_0001.exr");
+    auto r = box.run(runArgs((graphDir() / "taa.json").string(),
+                             {"--frames", "1-3", "--output", "out/t.####.exr"}));
+    EXPECT_EQ(r.code, 0) << r.all();
+    EXPECT_FALSE(looksLikeCrash(r.all())) << r.all();
+    // One warning for frame 2, counting each channel's 100 values.
+    for (const char* needle : {"warning: frame 2: scene/noisy/frame_0002.exr: NaN, infinite",
+                               "100 in color.R", "100 in color.G", "100 in color.B"})
+        EXPECT_NE(r.err.find(needle), std::string::npos) << needle << "\n" << r.all();
+    const auto first = r.err.find("NaN, infinite or absurd");
+    EXPECT_EQ(r.err.find("NaN, infinite or absurd", first + 1), std::string::npos) << r.all();
+    // The damage stays in its frame: frames 2 and 3 (whose history holds frame 2) are finite
+    // and in the clean frames' range (TAA blends, it does not amplify).
+    for (int f = 2; f <= 3; ++f)
+        EXPECT_LE(largestMagnitude(work() / "out" / frameName("t.", f, ".exr")), 4 * clean + 1)
+            << "frame " << f;
+}
+
+TEST_F(CliNothingLost, GapInTheSequenceIsACutAndSaid) {
+    auto gen = box.run({"scenegen", "--out", "gap", "--width", "32", "--height", "24", "--frames",
+                        "4", "--spp", "2"});
+    ASSERT_EQ(gen.code, 0) << gen.all();
+    const fs::path third = work() / "gap" / "noisy" / "frame_0003.exr";
+    auto runTaa = [&](const std::string& out, std::vector<std::string> extra) {
+        std::vector<std::string> args = {"run",       (graphDir() / "taa.json").string(),
+                                         "--input",   "gap/noisy/frame_####.exr",
+                                         "--output",  out,
+                                         "--threads", "2"};
+        args.insert(args.end(), extra.begin(), extra.end());
+        return box.run(args);
+    };
+    // Frame 4 after a cut: what a run starting at frame 4 computes (history empty).
+    auto fresh = runTaa("fresh/t.####.exr", {"--frames", "4"});
+    ASSERT_EQ(fresh.code, 0) << fresh.all();
+    RgbImage expected;
+    ASSERT_TRUE(readRgb((work() / "fresh" / "t.0004.exr").string(), expected));
+
+    fs::remove(third);
+    for (bool folder : {false, true}) {
+        SCOPED_TRACE(folder ? "a folder named like frame 3" : "frame 3 missing");
+        if (folder) fs::create_directory(third);
+        const std::string dir = folder ? "b" : "a";
+        auto r = runTaa(dir + "/t.####.exr", {});
+        EXPECT_EQ(r.code, 0) << r.all();
+        EXPECT_NE(r.err.find("warning: frames 2 and 4 of the input are not consecutive"),
+                  std::string::npos)
+            << r.all();
+        EXPECT_NE(r.err.find("history reset at frame 4"), std::string::npos) << r.all();
+        RgbImage got;
+        ASSERT_TRUE(readRgb((work() / dir / "t.0004.exr").string(), got));
+        EXPECT_EQ(got.rgb, expected.rgb) << "history was carried across the gap";
+    }
+}
+
+}  // namespace
