@@ -31,6 +31,7 @@ void addGraphCommand(CLI::App& app, Action& action) {
                 plugins = loadPlugins();
                 g = prepareGraph(*o, plugins->registry);
                 compiled = compileGraph(g, plugins->registry);
+                refuseUnusedOverrides(*compiled, o->sets, plugins->registry);
             } catch (const GraphError& e) {
                 printGraphError(e, &g);
                 return 2;
