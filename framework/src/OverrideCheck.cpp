@@ -87,7 +87,8 @@ private:
     }
 
     /// For passes that contribute to no output: the first edge out of the left-out region into
-    /// a pass that ignores it (a Select using its other input), said as "runs only when ...".
+    /// a pass that ignores it (a Select using its other input), said as "runs only when ...",
+    /// or into a pass left out for a reason of its own (TAA on a point-sampled render).
     std::optional<std::string> unusedBranch(const std::vector<std::string>& dead) const {
         const GraphDesc& g = compiled_.desc();
         std::set<std::string> seen(dead.begin(), dead.end());
@@ -104,6 +105,8 @@ private:
                 }
                 // The reader runs (or is elided, forwarding another input): it ignores this one.
                 const std::string used = usedInput(e.toPass);
+                if (used.empty() && it != leftOut_.end())  // the reader is left out itself
+                    return "feeds only " + e.toPass + ", which is left out: " + it->second;
                 if (used.empty() || used == e.toPort) continue;
                 std::string feeder;
                 for (const auto& f : g.edges)

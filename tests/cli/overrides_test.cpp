@@ -64,6 +64,9 @@ TEST_F(CliOverrides, SetOnALeftOutChainIsRefusedNamingWhatReachesALiveOne) {
     // The room has no split: the diffuse chain is left out for want of input.diffuse.
     r = svgf("graph", "room", {"--set", "diffuse.sigmaL=6"});
     expectOneLine(r, {"diffuse.* runs only on renders with input.diffuse", "use single.sigmaL"});
+    // A pass feeding only a pass left out for a reason of its own (TAA, point-sampled render).
+    r = svgf("graph", "street", {"--set", "taaReprojection.filter=bilinear"});
+    expectOneLine(r, {"taaReprojection feeds only taa, which is left out: point-sampled render"});
     // What reaches a live pass anywhere is taken.
     for (const char* scene : {"room", "street"}) {
         r = svgf("graph", scene, {"--set", "*.sigmaL=6", "--set", "*.iterations=3"});
