@@ -142,20 +142,39 @@ private:
                 const std::string rest = diag.path.substr(size_t(consumed));
                 diag.label = n.name;
                 const std::string params = ".params.";
-                if (rest.rfind(params, 0) == 0) {
-                    const std::string key = rest.substr(params.size());
-                    diag.label += "." + key;
-                    if (auto b = n.boundParams.find(key.substr(0, key.find('.')));
-                        b != n.boundParams.end())
-                        diag.message += " (set by group parameter " + b->second + ")";
-                }
-                if (!n.origin.empty()) diag.path = n.origin + rest;
+                const std::string key =
+                    rest.rfind(params, 0) == 0 ? rest.substr(params.size()) : std::string();
+                const std::string param = key.substr(0, key.find('.'));
+                if (!key.empty()) diag.label += "." + key;
+                if (auto b = n.boundParams.find(param); !key.empty() && b != n.boundParams.end())
+                    diag.message += " (set by group parameter " + b->second + ")";
+                if (auto by = n.setBy.find(param); !key.empty() && by != n.setBy.end())
+                    diag.path = by->second;  // from the command line: the option is to fix
+                else if (!n.origin.empty())
+                    diag.path = n.origin + rest;
             } else if (std::sscanf(diag.path.c_str(), "edges[%zu]%n", &index, &consumed) == 1 &&
                        consumed > 0 && index < d.edges.size() && !d.edges[index].origin.empty()) {
                 diag.path = d.edges[index].origin + diag.path.substr(size_t(consumed));
             }
         }
-        return diags;
+        return mergeOptionDiagnostics(std::move(diags));
+    }
+
+    /// One line per command-line mistake: a group parameter set out of range drives several
+    /// inner parameters, each refusing the same value ("--set single.sigmaLWide=-1
+    /// (single.atrous2.sigmaL, single.atrous3.sigmaL, ...)").
+    static std::vector<Diagnostic> mergeOptionDiagnostics(std::vector<Diagnostic> diags) {
+        std::vector<Diagnostic> merged;
+        for (auto& d : diags) {
+            auto same = std::find_if(merged.begin(), merged.end(), [&](const Diagnostic& m) {
+                return d.path.rfind("--", 0) == 0 && m.path == d.path && m.message == d.message;
+            });
+            if (same == merged.end())
+                merged.push_back(std::move(d));
+            else
+                same->label += ", " + d.label;
+        }
+        return merged;
     }
 
     void instantiate() {

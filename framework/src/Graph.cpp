@@ -2,6 +2,8 @@
 
 #include <fnmatch.h>
 
+#include <algorithm>
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -10,6 +12,8 @@
 
 #include "GraphInternal.h"
 #include "kestrel/InputFiles.h"
+#include "ParamCheck.h"
+#include "kestrel/Registry.h"
 
 namespace kestrel {
 
@@ -154,74 +158,157 @@ std::vector<GroupInfo> listGroups(const std::filesystem::path& file) {
 
 namespace {
 
-/// Sets `param` on every pass `target` names or matches; true if any.
-bool overridePasses(GraphDesc& graph, const std::string& target, const std::string& param,
-                    const json& value, bool pattern) {
-    bool found = false;
-    for (auto& p : graph.passes)
-        if (pattern ? fnmatch(target.c_str(), p.name.c_str(), 0) == 0 : p.name == target) {
-            json params = json::parse(p.paramsJson);
-            params[param] = value;
-            p.paramsJson = params.dump();
-            found = true;
-        }
-    return found;
+using Targets = std::vector<std::pair<std::string, std::string>>;
+
+/// One parsed assignment: `target.param=value`, and how the user wrote it.
+struct Assignment {
+    std::string text;    ///< "--set diffuse.sigmaL=6": the option as typed
+    std::string target;  ///< pass, instance or pattern
+    std::string param;
+    json value;
+    bool pattern = false;
+};
+
+bool matches(const Assignment& a, const std::string& name) {
+    return a.pattern ? fnmatch(a.target.c_str(), name.c_str(), 0) == 0 : name == a.target;
 }
 
-/// Sets group parameter `param` of every instance `target` names or matches: every inner
-/// parameter bound to it; true if any instance has that group parameter.
-bool overrideInstances(GraphDesc& graph, const std::string& target, const std::string& param,
-                       const json& value, bool pattern) {
-    bool found = false;
+/// Does the pass's type declare `param`? Without a registry every pass is taken to.
+bool declares(const PassNode& p, const std::string& param, const Registry* registry) {
+    if (!registry) return true;
+    const PassType* t = registry->find(p.type);
+    // An unknown type is the compiler's to report.
+    return !t || t->desc.findParam(param) != nullptr;
+}
+
+/// Sets one parameter and records the option it came from. Set on the pass itself (`direct`),
+/// it no longer comes from the group parameter it was bound to.
+void setParam(PassNode& p, const std::string& param, const json& value, const std::string& by,
+              bool direct) {
+    json params = json::parse(p.paramsJson);
+    params[param] = value;
+    p.paramsJson = params.dump();
+    p.setBy[param] = by;
+    if (direct) p.boundParams.erase(param);
+}
+
+/// The passes `a` names or matches whose type declares the parameter.
+Targets passTargets(const GraphDesc& graph, const Assignment& a, const Registry* registry) {
+    Targets t;
+    for (const auto& p : graph.passes)
+        if (matches(a, p.name) && declares(p, a.param, registry)) t.emplace_back(p.name, a.param);
+    return t;
+}
+
+/// The inner parameters bound to group parameter `a.param` of every instance `a` names or
+/// matches; throws Error when its type or range refuses the value.
+Targets instanceTargets(const GraphDesc& graph, const Assignment& a) {
+    Targets t;
     for (const auto& inst : graph.instances) {
-        if (!(pattern ? fnmatch(target.c_str(), inst.path.c_str(), 0) == 0 : inst.path == target))
-            continue;
-        auto it = inst.bindings.find(param);
+        if (!matches(a, inst.path)) continue;
+        auto it = inst.bindings.find(a.param);
         if (it == inst.bindings.end()) continue;
-        found = true;
-        for (const auto& [pass, inner] : it->second)
-            overridePasses(graph, pass, inner, value, false);
+        if (auto spec = inst.specs.find(a.param); spec != inst.specs.end())
+            if (auto bad = detail::checkGroupValue(spec->second, a.value); !bad.empty())
+                throw Error(a.text + ": group parameter '" + a.param + "' of " + inst.path +
+                            " (group " + inst.group + "): " + bad);
+        t.insert(t.end(), it->second.begin(), it->second.end());
     }
-    return found;
+    return t;
+}
+
+std::string joinNames(const std::vector<std::string>& v, size_t most = 12) {
+    std::string s;
+    for (size_t i = 0; i < v.size() && i < most; ++i) s += (i ? ", " : "") + v[i];
+    if (v.size() > most) s += ", +" + std::to_string(v.size() - most);
+    return s;
+}
+
+/// The parameter names `a`'s target could have: the group parameters of the instances and the
+/// declared parameters of the passes it names or matches.
+std::vector<std::string> paramsOfTarget(const GraphDesc& graph, const Assignment& a,
+                                        const Registry* registry) {
+    std::set<std::string> names;
+    for (const auto& inst : graph.instances)
+        if (matches(a, inst.path))
+            for (const auto& [name, b] : inst.bindings) names.insert(name);
+    if (registry)
+        for (const auto& p : graph.passes)
+            if (matches(a, p.name))
+                if (const PassType* t = registry->find(p.type))
+                    for (const auto& d : t->desc.params) names.insert(d.name);
+    return {names.begin(), names.end()};
+}
+
+/// One line for an assignment that sets nothing: what was meant, if anything is near.
+[[noreturn]] void refuse(const GraphDesc& graph, const Assignment& a, const Registry* registry) {
+    const auto params = paramsOfTarget(graph, a, registry);
+    if (!params.empty() ||
+        (!a.pattern && std::any_of(graph.instances.begin(), graph.instances.end(),
+                                   [&](auto& i) { return i.path == a.target; }))) {
+        // The pass, instance or pattern exists: the parameter is wrong.
+        const std::string near = detail::nearestName(a.param, params);
+        const bool isInstance = std::any_of(graph.instances.begin(), graph.instances.end(),
+                                            [&](auto& i) { return matches(a, i.path); });
+        std::string what = "no pass or group instance matching '" + a.target + "' has a";
+        if (!a.pattern) what = (isInstance ? "instance '" : "pass '") + a.target + "' has no";
+        throw Error(a.text + ": " + what + " parameter '" + a.param + "'" +
+                    (near.empty() ? " (parameters: " + joinNames(params, 40) + ")"
+                                  : " (did you mean '" + a.target + "." + near + "'?)"));
+    }
+    // Nothing of that name: suggest the nearest pass or instance (a case or one-letter typo).
+    std::vector<std::string> names;
+    for (const auto& i : graph.instances) names.push_back(i.path);
+    for (const auto& p : graph.passes) names.push_back(p.name);
+    const std::string near = a.pattern ? "" : detail::nearestName(a.target, names);
+    std::vector<std::string> top;  // passes outside instances, and the instances
+    for (const auto& p : graph.passes)
+        if (p.instance.empty()) top.push_back(p.name);
+    for (const auto& i : graph.instances) top.push_back(i.path + ".*");
+    throw Error(a.text + ": " +
+                (a.pattern ? "no pass matches '" : "no pass or group instance named '") + a.target +
+                "'" +
+                (near.empty() ? " (passes: " + joinNames(top, 40) + ")"
+                              : " (did you mean '" + near + "." + a.param + "'?)"));
 }
 
 }  // namespace
 
-void applyOverride(GraphDesc& graph, const std::string& assignment) {
+Targets applyOverride(GraphDesc& graph, const std::string& assignment, const Registry* registry,
+                      const std::string& option) {
+    Assignment a;
+    a.text = option + " " + assignment;
     auto eq = assignment.find('=');
     auto dot = eq == std::string::npos ? std::string::npos : assignment.rfind('.', eq);
     if (eq == std::string::npos || dot == std::string::npos || dot == 0 || dot + 1 == eq)
-        throw Error("--set " + assignment + ": expected pass.param=value");
-    std::string pass = assignment.substr(0, dot);
-    std::string param = assignment.substr(dot + 1, eq - dot - 1);
-    std::string text = assignment.substr(eq + 1);
-    json value;
-    checkJsonText(text, "--set " + pass + "." + param);
+        throw Error(a.text + ": expected pass.param=value");
+    a.target = assignment.substr(0, dot);
+    a.param = assignment.substr(dot + 1, eq - dot - 1);
+    const std::string text = assignment.substr(eq + 1);
+    checkJsonText(text, a.text);
     try {
-        value = json::parse(text);
+        a.value = json::parse(text);
     } catch (const json::parse_error&) {
-        value = text;  // not JSON: a plain string
+        a.value = text;  // not JSON: a plain string
     } catch (const json::exception& e) {
         // A number beyond a double (1e999) is JSON the parser refuses: the graph file's message,
         // naming the assignment instead of a file.
-        throw Error("--set " + assignment + ": " + jsonProblem(e));
+        throw Error(a.text + ": " + jsonProblem(e));
     }
     // A pattern (*, ?, [..]) sets the parameter on every pass whose name matches: e.g.
     // '*atrous*.exact=true' for all A-Trous iterations of every chain. A group instance's
     // parameter (diffuse.sigmaL) goes to every inner parameter bound to it; a pattern that
     // matches instances with that group parameter ('*.sigmaL') sets it on them only, not on
     // every pass the pattern also matches.
-    const bool pattern = pass.find_first_of("*?[") != std::string::npos;
-    if (overrideInstances(graph, pass, param, value, pattern)) return;
-    if (overridePasses(graph, pass, param, value, pattern)) return;
-    std::string known, groupParams;
-    for (const auto& p : graph.passes) known += (known.empty() ? "" : ", ") + p.name;
-    for (const auto& i : graph.instances)
-        for (const auto& [name, targets] : i.bindings)
-            groupParams += (groupParams.empty() ? "" : ", ") + i.path + "." + name;
-    if (!groupParams.empty()) known += "; group parameters: " + groupParams;
-    throw Error("--set " + assignment + ": no pass " + (pattern ? "matches '" : "named '") + pass +
-                "' (passes: " + known + ")");
+    a.pattern = a.target.find_first_of("*?[") != std::string::npos;
+    Targets targets = instanceTargets(graph, a);
+    const bool direct = targets.empty();
+    if (direct) targets = passTargets(graph, a, registry);
+    if (targets.empty()) refuse(graph, a, registry);
+    for (auto& p : graph.passes)
+        for (const auto& [pass, param] : targets)
+            if (p.name == pass) setParam(p, param, a.value, a.text, direct);
+    return targets;
 }
 
 }  // namespace kestrel

@@ -2,6 +2,7 @@
 // Every pass and edge keeps the JSON path it was written at (in its own file), so the compiler's
 // messages point at the definition and name the instance path.
 #include <algorithm>
+#include <cmath>
 #include <deque>
 #include <filesystem>
 #include <map>
@@ -283,6 +284,12 @@ public:
             stringList(def, "outputs", p + ".outputs", diags_);
             if (def.contains("params") && !def["params"].is_object())
                 diags_.push_back({p + ".params", "expected an object of parameter defaults"});
+            else if (def.contains("params"))  // checked here once, used per instance
+                for (const auto& [k, decl] : def["params"].items()) {
+                    json value;
+                    GroupParamSpec spec;
+                    parseGroupParam(decl, p + ".params." + k, value, spec, diags_);
+                }
             if (!def.contains("passes") || !def["passes"].is_array())
                 diags_.push_back({p + ".passes", "expected an array of passes"});
             if (def.contains("edges") && !def["edges"].is_array())
@@ -596,8 +603,9 @@ private:
         g_.instances.push_back({env.instance, gname, p, {}});
         const json defaults =
             dj.contains("params") && dj["params"].is_object() ? dj["params"] : json::object();
-        for (const auto& [k, v] : defaults.items()) {
-            env.values[k] = v;
+        std::vector<Diagnostic> reported;  // at the definition, when it was read
+        for (const auto& [k, decl] : defaults.items()) {
+            parseGroupParam(decl, "", env.values[k], g_.instances[idx].specs[k], reported);
             env.targets[k] = {{idx, k}};
         }
         if (jp.contains("params"))
@@ -618,6 +626,11 @@ private:
                 json value = v;
                 std::string bound;
                 if (!substitute(value, s, pp, &bound)) continue;
+                if (auto bad = checkGroupValue(g_.instances[idx].specs[k], value); !bad.empty()) {
+                    diags_.push_back(
+                        {pp, "group parameter '" + k + "' of group '" + gname + "': " + bad});
+                    continue;
+                }
                 env.values[k] = value;
                 if (!bound.empty()) {  // passed down: the outer parameter drives it too
                     auto& t = env.targets[k];
@@ -759,6 +772,88 @@ private:
 
 }  // namespace
 
+namespace {
+std::string typeOfValue(const json& v) {
+    if (v.is_boolean()) return "bool";
+    if (v.is_number_integer()) return "int";
+    if (v.is_number()) return "number";
+    if (v.is_string()) return "string";
+    return "";
+}
+
+std::string numberText(double d) {
+    return d == double(int64_t(d)) ? std::to_string(int64_t(d)) : json(d).dump();
+}
+}  // namespace
+
+void parseGroupParam(const json& decl, const std::string& path, json& value, GroupParamSpec& spec,
+                     std::vector<Diagnostic>& diags) {
+    if (!decl.is_object() || !decl.contains("default")) {  // a bare default: its type
+        value = decl;
+        spec.type = typeOfValue(decl);
+        return;
+    }
+    checkKeys(decl, {"default", "type", "min", "max", "comment"}, path, diags);
+    value = decl["default"];
+    spec.type = typeOfValue(value);
+    if (decl.contains("type")) {
+        const json& t = decl["type"];
+        if (!t.is_string() || (t != "int" && t != "number" && t != "bool" && t != "string"))
+            diags.push_back({path + ".type",
+                             "expected \"int\", \"number\", \"bool\" or "
+                             "\"string\", got " +
+                                 t.dump()});
+        else
+            spec.type = t;
+    }
+    if (decl.contains("min") || decl.contains("max")) {
+        const bool numeric = spec.type == "int" || spec.type == "number";
+        if (!numeric || !decl.value("min", json(0)).is_number() ||
+            !decl.value("max", json(0)).is_number() || !decl.contains("min") ||
+            !decl.contains("max")) {
+            diags.push_back({path,
+                             "\"min\" and \"max\" (both numbers) bound an int or number "
+                             "parameter"});
+        } else {
+            spec.hasRange = true;
+            spec.min = decl["min"];
+            spec.max = decl["max"];
+        }
+    }
+    if (auto bad = checkGroupValue(spec, value); !bad.empty())
+        diags.push_back({path + ".default", bad});
+}
+
+std::string checkGroupValue(const GroupParamSpec& spec, const json& value) {
+    const bool isInt =
+        value.is_number_integer() ||
+        (value.is_number_float() && value.get<double>() == std::floor(value.get<double>()) &&
+         std::fabs(value.get<double>()) < 9e15);
+    std::string expected;
+    bool ok = true;
+    if (spec.type == "int") {
+        expected = "an integer";
+        ok = isInt;
+    } else if (spec.type == "number") {
+        expected = "a number";
+        ok = value.is_number();
+    } else if (spec.type == "bool") {
+        expected = "true or false";
+        ok = value.is_boolean();
+    } else if (spec.type == "string") {
+        expected = "a string";
+        ok = value.is_string();
+    }
+    if (ok && spec.hasRange) {
+        const double v = value.get<double>();
+        ok = v >= spec.min && v <= spec.max;
+    }
+    if (ok) return "";
+    if (spec.hasRange)
+        expected += " in [" + numberText(spec.min) + ", " + numberText(spec.max) + "]";
+    return "expected " + expected + ", got " + value.dump();
+}
+
 void expandDocument(const json& doc, const fs::path& source, GraphDesc& g,
                     std::vector<Diagnostic>& diags) {
     DocumentSet docs(diags);
@@ -796,7 +891,12 @@ std::vector<GroupInfo> groupsOfFile(const fs::path& file) {
         info.inputs = stringList(j, "inputs", "", diags);
         info.outputs = stringList(j, "outputs", "", diags);
         if (j.contains("params"))
-            for (const auto& [k, v] : j["params"].items()) info.params.emplace_back(k, v.dump());
+            for (const auto& [k, decl] : j["params"].items()) {
+                json value;
+                GroupParamSpec spec;
+                parseGroupParam(decl, "", value, spec, diags);
+                info.params.emplace_back(k, value.dump());
+            }
         info.passCount = j["passes"].size();
         r.push_back(std::move(info));
     }

@@ -27,6 +27,14 @@ void checkVersion(const nlohmann::json& doc, const std::string& prefix,
 void expandDocument(const nlohmann::json& doc, const std::filesystem::path& source, GraphDesc& g,
                     std::vector<Diagnostic>& diags);
 
+/// A group parameter's declaration: a bare default, or `{ "default": D, "type": T, "min": A,
+/// "max": B, "comment": C }`. Sets `value` to the default and `spec` to its type and range;
+/// problems are appended to `diags` at `path`.
+void parseGroupParam(const nlohmann::json& decl, const std::string& path, nlohmann::json& value,
+                     GroupParamSpec& spec, std::vector<Diagnostic>& diags);
+/// "" when `value` fits `spec`, else what was expected ("expected an integer in [1, 5], got 7").
+std::string checkGroupValue(const GroupParamSpec& spec, const nlohmann::json& value);
+
 /// The groups `file` itself defines.
 std::vector<GroupInfo> groupsOfFile(const std::filesystem::path& file);
 

@@ -259,6 +259,28 @@ static void addCanonicalEmission(Plan& plan) {
     emission.why = "color - diffuse - specular (no emission channel)";
 }
 
+namespace {
+/// A file whose channels are all bare names (R, G, B, A, Z) is a single-layer EXR: Blender's
+/// "OpenEXR" format, which holds the Combined pass only. What it lacks is then not a channel
+/// to enable but a format to choose: each absent output says so (docs/blender.md).
+void explainSingleLayer(Plan& plan, const ChannelSets& files) {
+    auto it = files.find("");
+    if (it == files.end() || it->second.empty()) return;
+    std::string names;
+    for (const auto& c : it->second) {
+        if (c.find('.') != std::string::npos) return;  // layered: a canonical or Blender file
+        names += (names.empty() ? "" : ", ") + c;
+    }
+    const std::string prefix = "layout canonical has no ";
+    for (auto& r : plan.recipes)
+        if (r.absent && r.why.rfind(prefix, 0) == 0)
+            r.why = "a single-layer EXR (channels " + names + ") has no " +
+                    r.why.substr(prefix.size()) +
+                    ": save the render as OpenEXR MultiLayer with its passes (Blender: Output "
+                    "Properties > Output > File Format; docs/blender.md)";
+}
+}  // namespace
+
 Plan planCanonical(const ChannelSets& files) {
     Builder b(Layout::Canonical, files);
     b.set("color", {{""}});
@@ -272,7 +294,11 @@ Plan planCanonical(const ChannelSets& files) {
                 b.set(o.name, {{o.name}});
             }
         }
+    // OpenEXR's own name for depth is a bare Z (Blender's single-layer "Z Buffer" option, many
+    // renderers' beauty files); the canonical depth.Z wins where both exist.
+    if (b.plan.find("depth")->absent && resolveGroup(files, "", "Z", 1)) b.set("depth", {{"Z"}});
     addCanonicalEmission(b.plan);
+    explainSingleLayer(b.plan, files);
     return b.plan;
 }
 

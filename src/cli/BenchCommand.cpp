@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <iostream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
@@ -54,7 +55,52 @@ double median(std::vector<double> v) {
     return v[v.size() / 2];
 }
 
-std::vector<Setting> makeSettings(const BenchOptions& o) {
+/// The values of `--sweep pass.param=v1,v2,...`; an empty list or value is a usage error.
+std::vector<std::string> sweepValues(const std::string& sweep, size_t eq) {
+    std::vector<std::string> values;
+    std::stringstream list(sweep.substr(eq + 1));
+    for (std::string v; std::getline(list, v, ',');) {
+        if (v.empty())
+            throw Error("--sweep " + sweep + ": an empty value (expected pass.param=v1,v2,...)");
+        values.push_back(v);
+    }
+    if (values.empty() || sweep.back() == ',')
+        throw Error("--sweep " + sweep + ": no value" +
+                    (values.empty() ? "s" : " after the last comma") +
+                    " (expected pass.param=v1,v2,...)");
+    return values;
+}
+
+/// The rows of one sweep on one graph. A graph without the pass (or group parameter) is not
+/// swept (empty result, `why` says why); a value the graph refuses is a usage error.
+std::vector<Setting> sweepGraph(const GraphDesc& g, const std::string& gpath,
+                                const std::string& sweep, const Registry& registry,
+                                std::string& why) {
+    const size_t eq = sweep.find('=');
+    std::vector<Setting> rows;
+    std::string refused;
+    for (const auto& v : sweepValues(sweep, eq)) {
+        const std::string assign = sweep.substr(0, eq) + "=" + v;
+        try {  // tried on a copy, as --set would apply it (names, patterns, instance parameters)
+            GraphDesc trial = g;
+            applyOverride(trial, assign, &registry, "--sweep");
+            rows.push_back({g.name + " " + assign, gpath, {assign}, false});
+        } catch (const Error& e) {
+            if (refused.empty()) refused = e.what();
+        }
+    }
+    // Named as typed when no value took: the name is what is wrong, not one value.
+    const std::string prefix = "--sweep " + sweep.substr(0, eq) + "=";
+    if (rows.empty() && refused.rfind(prefix, 0) == 0 && refused.find(": ") != std::string::npos)
+        why = "--sweep " + sweep + refused.substr(refused.find(": "));
+    else if (rows.empty())
+        why = refused;
+    else if (!refused.empty())
+        throw Error(refused);  // the target exists: the value is wrong
+    return rows;
+}
+
+std::vector<Setting> makeSettings(const BenchOptions& o, const Registry& registry) {
     std::vector<Setting> settings;
     std::vector<std::string> graphs = o.graphs;
     if (graphs.empty())
@@ -66,33 +112,33 @@ std::vector<Setting> makeSettings(const BenchOptions& o) {
         }
     if (graphs.empty()) throw Error("no graphs to bench");
     if (!o.noInputRow) settings.push_back({"input (unfiltered)", graphs.front(), {}, true});
+    std::map<std::string, std::string> unmatched;  // sweep -> why the first graph refused it
+    for (const auto& sweep : o.sweeps) {
+        auto eq = sweep.find('=');
+        auto dot = eq == std::string::npos ? std::string::npos : sweep.rfind('.', eq);
+        if (eq == std::string::npos || dot == std::string::npos)
+            throw Error("--sweep " + sweep + ": expected pass.param=v1,v2,...");
+        unmatched[sweep] = "";
+    }
     for (const auto& gpath : graphs) {
         GraphDesc g = loadGraphFile(gpath);
-        std::string base = g.name;
         bool swept = false;
         for (const auto& sweep : o.sweeps) {
-            auto eq = sweep.find('=');
-            auto dot = eq == std::string::npos ? std::string::npos : sweep.rfind('.', eq);
-            if (eq == std::string::npos || dot == std::string::npos)
-                throw Error("--sweep " + sweep + ": expected pass.param=v1,v2,...");
-            // A graph without the pass (or group parameter) is not swept: the assignment is
-            // tried on a copy, as --set would apply it (names, patterns, instance parameters).
-            try {
-                GraphDesc trial = g;
-                applyOverride(trial, sweep.substr(0, eq) + "=0");
-            } catch (const Error&) {
-                continue;
-            }
-            std::stringstream values(sweep.substr(eq + 1));
-            for (std::string v; std::getline(values, v, ',');) {
-                if (v.empty()) continue;
-                std::string assign = sweep.substr(0, eq) + "=" + v;
-                settings.push_back({base + " " + assign, gpath, {assign}, false});
-                swept = true;
-            }
+            std::string why;
+            auto rows = sweepGraph(g, gpath, sweep, registry, why);
+            if (rows.empty() && unmatched[sweep].empty()) unmatched[sweep] = why;
+            if (!rows.empty()) unmatched.erase(sweep);
+            swept = swept || !rows.empty();
+            settings.insert(settings.end(), rows.begin(), rows.end());
         }
-        if (!swept) settings.push_back({base, gpath, {}, false});
+        if (!swept) settings.push_back({g.name, gpath, {}, false});
     }
+    // A sweep no graph takes would bench the same graph once per value: refused, with the
+    // first graph's reason (a did-you-mean).
+    for (const auto& sweep : o.sweeps)
+        if (auto it = unmatched.find(sweep); it != unmatched.end())
+            throw Error(it->second.empty() ? "--sweep " + sweep + ": no benched graph has it"
+                                           : it->second);
     return settings;
 }
 
@@ -155,9 +201,10 @@ Prepared prepare(const Setting& s, const BenchRun& b) {
                 break;
             }
         if (source.empty()) throw Error("graph " + s.graph.string() + " has no input pass");
-        applyOverride(g, source + ".path=" + nlohmann::json(b.input).dump());
-        for (const auto& set : b.options.sets) applyOverride(g, set);
-        for (const auto& set : s.sets) applyOverride(g, set);
+        applyOverride(g, source + ".path=" + nlohmann::json(b.input).dump(), &b.registry,
+                      "--input");
+        for (const auto& set : b.options.sets) applyOverride(g, set, &b.registry);
+        for (const auto& set : s.sets) applyOverride(g, set, &b.registry, "--sweep");
         if (s.inputOnly) {
             g.passes.erase(std::remove_if(g.passes.begin(), g.passes.end(),
                                           [&](const PassNode& n) { return n.name != source; }),
@@ -172,6 +219,10 @@ Prepared prepare(const Setting& s, const BenchRun& b) {
         copt.firstFrame = b.frames.front();
         copt.fuse = !b.options.noFuse;
         p.compiled = compileGraph(g, b.registry, copt);
+        if (!s.inputOnly) {  // tuning that changes nothing here gives identical rows
+            refuseUnusedOverrides(*p.compiled, b.options.sets, b.registry, "--set");
+            refuseUnusedOverrides(*p.compiled, s.sets, b.registry, "--sweep");
+        }
         for (const auto& pattern : b.options.cropDumps)
             for (const auto& r : matchResources(*p.compiled, pattern))
                 if (std::find(p.crops.begin(), p.crops.end(), r) == p.crops.end())
@@ -310,12 +361,27 @@ int runBench(const BenchOptions& o) {
     b.toneMap = *tm;
     b.frames = o.frames.empty() ? findFrames(b.input) : parseFrameList(o.frames);
     if (b.frames.empty()) throw Error("--input " + b.input + ": no frames found");
+    try {  // a range past the sequence's end fails before any setting runs
+        if (!o.frames.empty())
+            checkFramesExist(b.frames, findFrames(b.input), "--frames " + o.frames, b.input);
+    } catch (const Error& e) {
+        std::cerr << "error: " << e.what() << "\n";
+        return 2;
+    }
     b.report.title = "kestrel bench";
     b.report.frames = b.frames;
     b.report.toneMap = *tm;
     b.cropFrame = b.frames.size() / 2;
 
-    std::vector<Setting> settings = makeSettings(o);
+    std::vector<Setting> settings;
+    try {
+        settings = makeSettings(o, plugins->registry);
+    } catch (const GraphError&) {
+        throw;
+    } catch (const Error& e) {  // a sweep that names nothing, or a value a graph refuses
+        std::cerr << "error: " << e.what() << "\n";
+        return 2;
+    }
     std::vector<Prepared> prepared;
     for (const auto& s : settings) prepared.push_back(prepare(s, b));
     try {

@@ -3,6 +3,7 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -76,7 +77,7 @@ void assignPaths(GraphDesc& g, const Registry& reg, const std::vector<std::strin
             throw Error(std::string(flag) + " " + spec + ": no " +
                         (std::string(flag) == "--input" ? "input" : "output") + " pass named '" +
                         name + "'");
-        applyOverride(g, name + ".path=" + nlohmann::json(pattern).dump());
+        applyOverride(g, name + ".path=" + nlohmann::json(pattern).dump(), &reg, flag);
     }
 }
 }  // namespace
@@ -102,7 +103,7 @@ GraphDesc prepareGraph(const GraphOptions& o, const Registry& reg) {
     GraphDesc g = loadGraphFile(path);
     assignPaths(g, reg, o.inputs, isSource, "--input");
     assignPaths(g, reg, o.outputs, isSink, "--output");
-    for (const auto& s : o.sets) applyOverride(g, s);
+    for (const auto& s : o.sets) applyOverride(g, s, &reg);
     for (const auto& n : g.passes) {
         const PassType* t = reg.find(n.type);
         if (!t || !pathParam(n).empty()) continue;
@@ -131,6 +132,12 @@ void printGraphError(const GraphError& e, const GraphDesc* graph) {
     // (taa.alpha): ...", or for a pass inside a group instance the JSON path in the definition.
     (void)graph;
     for (const auto& d : e.diagnostics()) std::cerr << "error: " << d.str() << "\n";
+}
+
+void refuseUnusedOverrides(const CompiledGraph& compiled, const std::vector<std::string>& sets,
+                           const Registry& registry, const std::string& option) {
+    if (auto unused = unusedOverrides(compiled, sets, registry, option); !unused.empty())
+        throw GraphError(std::move(unused));
 }
 
 int exitTwoOnUsageError(const std::function<int()>& fn) {
@@ -164,6 +171,46 @@ std::string markSinkInput(GraphDesc& g, const Registry& reg, bool detach) {
     if (std::find(g.outputs.begin(), g.outputs.end(), marked) == g.outputs.end())
         g.outputs.push_back(marked);
     return marked;
+}
+
+namespace {
+/// "1-12", "1-4, 7, 9-12": frame numbers as runs.
+std::string frameRuns(const std::vector<int64_t>& frames) {
+    std::string s;
+    for (size_t i = 0; i < frames.size();) {
+        size_t j = i;
+        while (j + 1 < frames.size() && frames[j + 1] == frames[j] + 1) ++j;
+        s += (s.empty() ? "" : ", ") + std::to_string(frames[i]) +
+             (j > i ? "-" + std::to_string(frames[j]) : "");
+        i = j + 1;
+    }
+    return s;
+}
+}  // namespace
+
+std::string sourcePath(const GraphDesc& g, const Registry& reg) {
+    for (const auto& n : g.passes)
+        if (const PassType* t = reg.find(n.type); t && isSource(*t) && !pathParam(n).empty())
+            return pathParam(n);
+    return {};
+}
+
+void checkFramesExist(const std::vector<int64_t>& asked, std::vector<int64_t> available,
+                      const std::string& option, const std::string& input,
+                      const std::string& remedy) {
+    if (asked.empty() || available.empty()) return;
+    std::sort(available.begin(), available.end());
+    // Only frames outside the sequence: a gap inside it (a frame lost, or still being written
+    // by the renderer) stays a runtime error of that frame, after the frames before it.
+    std::vector<int64_t> missing;
+    for (auto f : asked)
+        if (f < available.front() || f > available.back()) missing.push_back(f);
+    if (missing.empty()) return;
+    std::sort(missing.begin(), missing.end());
+    missing.erase(std::unique(missing.begin(), missing.end()), missing.end());
+    throw Error(option + ": frame" + (missing.size() > 1 ? "s " : " ") + frameRuns(missing) +
+                (missing.size() > 1 ? " are" : " is") + " not in the input " + input +
+                " (it has frames " + frameRuns(available) + "); " + remedy);
 }
 
 std::vector<int64_t> parseFrameList(const std::string& text) {

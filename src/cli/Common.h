@@ -56,9 +56,24 @@ std::string markSinkInput(GraphDesc& graph, const Registry& registry, bool detac
 /// into a pass also names it as the user writes it in --set: "passes[1].params.alpha (taa.alpha)".
 void printGraphError(const GraphError& e, const GraphDesc* graph = nullptr);
 
+/// Throws GraphError, one line per override, when an override (`--set` or `--sweep`, `option`)
+/// sets only passes the compiled graph leaves out for this scene: it would silently do nothing.
+void refuseUnusedOverrides(const CompiledGraph& compiled, const std::vector<std::string>& sets,
+                           const Registry& registry, const std::string& option = "--set");
+
 /// Runs `fn`; a GraphError or Error it throws (bad options, a graph that does not prepare) is
 /// printed, one line per finding, and gives exit code 2 (docs/errors.md).
 int exitTwoOnUsageError(const std::function<int()>& fn);
+
+/// The path pattern of the graph's first file source ("" when none has one).
+std::string sourcePath(const GraphDesc& graph, const Registry& registry);
+
+/// Throws Error (a usage error, before frame 1) naming the frames of `asked` before the input's
+/// first frame or after its last, and the frames it has; nothing when `available` is empty (a
+/// source that cannot list them). A gap inside the sequence is left to the run (exit 1).
+void checkFramesExist(const std::vector<int64_t>& asked, std::vector<int64_t> available,
+                      const std::string& option, const std::string& input,
+                      const std::string& remedy = "give a range inside it");
 
 /// Parses "1-100", "1-100x2", "3,4,10-20x2" into frame numbers (Error naming the text).
 std::vector<int64_t> parseFrameList(const std::string& text);

@@ -33,6 +33,7 @@ void addGraphCommand(CLI::App& app, Action& action) {
                 plugins = loadPlugins();
                 g = prepareGraph(*o, plugins->registry);
                 compiled = compileGraph(g, plugins->registry);
+                refuseUnusedOverrides(*compiled, o->sets, plugins->registry);
                 if (!outFile->empty()) {  // never over the graph, its includes or the frames
                     FilesRead read;
                     read.addGraph(g);

@@ -223,6 +223,11 @@ int runGraph(const RunOptions& o) {
         copt.firstFrame = frames.empty() ? 0 : frames.front();
         copt.fuse = !o.noFuse;
         compiled = compileGraph(g, plugins->registry, copt);
+        refuseUnusedOverrides(*compiled, o.graph.sets, plugins->registry);
+        if (!o.skipBadFrames)  // a range past the sequence's end fails now, not at its end
+            checkFramesExist(frames, sourceFrames(*compiled), "--frames " + o.frames,
+                             sourcePath(g, plugins->registry),
+                             "give a range inside it, or --skip-bad-frames to skip missing frames");
         if (!o.dumps.empty()) {  // writers for what the compiled graph computes, then again
             const auto dumped = matchDumps(*compiled, o.dumps);
             const fs::path dir =

@@ -117,4 +117,13 @@ private:
     std::unique_ptr<Impl> impl_;
 };
 
+/// The overrides (`pass.param=value` as applyOverride takes them, already applied to the graph
+/// `compiled` was built from) that set only passes this scene leaves out: tuning that would
+/// silently do nothing. One Diagnostic each (path: the option as typed), saying why those
+/// passes are left out and which live instance or pattern would take the value.
+std::vector<Diagnostic> unusedOverrides(const CompiledGraph& compiled,
+                                        const std::vector<std::string>& assignments,
+                                        const Registry& registry,
+                                        const std::string& option = "--set");
+
 }  // namespace kestrel

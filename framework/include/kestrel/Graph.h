@@ -27,6 +27,8 @@ namespace kestrel {
 
 constexpr int kGraphFormatVersion = 1;
 
+class Registry;
+
 struct PassNode {
     std::string name;
     std::string type;
@@ -39,12 +41,23 @@ struct PassNode {
     std::string instance = {};
     /// Parameters set from a group parameter: param -> "diffuse.sigmaL" (for error messages).
     std::map<std::string, std::string> boundParams = {};
+    /// Parameters set on the command line: param -> the option as typed ("--set
+    /// diffuse.iterations=3"). A problem with such a value is the option's, not the file's.
+    std::map<std::string, std::string> setBy = {};
 };
 
 struct EdgeDesc {
     std::string fromPass, fromPort, toPass, toPort;
     bool history = false;
     std::string origin = {};  ///< JSON path of the edge as written (see PassNode::origin)
+};
+
+/// A group parameter's declared type and range (docs/graphs.md): `"iterations": { "default": 5,
+/// "min": 1, "max": 5 }`. A parameter written as a bare default takes its default's type.
+struct GroupParamSpec {
+    std::string type;  ///< "int", "number", "bool", "string" or "" (any JSON value)
+    bool hasRange = false;
+    double min = 0, max = 0;
 };
 
 /// One expanded group instance (nested instances have dotted paths: "outer.inner").
@@ -54,6 +67,8 @@ struct GroupInstance {
     std::string origin;
     /// Group parameter -> the (flat pass, parameter) pairs it drives, for --set diffuse.sigmaL=6.
     std::map<std::string, std::vector<std::pair<std::string, std::string>>> bindings;
+    /// Group parameter -> its type and range, to check values an override gives it.
+    std::map<std::string, GroupParamSpec> specs = {};
 };
 
 /// A group definition as written, for listings (`kestrel passes`).
@@ -97,6 +112,17 @@ bool splitPassPort(const std::string& s, std::string& pass, std::string& port);
 /// parameter bound to it gets the value. A pattern matching instances with that group parameter
 /// (`*.sigmaL`) sets the group parameter only. A name or pattern matching nothing is an Error
 /// naming the override.
-void applyOverride(GraphDesc& graph, const std::string& assignment);
+///
+/// With the registry, a misspelt name or parameter is one Error with a suggestion (the case
+/// typo `diffuse.sigmal` -> `diffuse.sigmaL`), and a pattern sets a pass parameter only on the
+/// matching passes whose type declares it (`'*.sigmaLL=6'` is one error, not one per pass). A
+/// value a group parameter's type or range refuses is an Error. `option` is the option the user
+/// typed (`--set`, `--sweep`): messages name it, and every parameter set records it
+/// (PassNode::setBy) so the compiler blames the option, not the graph file.
+/// Returns the (pass, parameter) pairs set.
+std::vector<std::pair<std::string, std::string>> applyOverride(GraphDesc& graph,
+                                                               const std::string& assignment,
+                                                               const Registry* registry = nullptr,
+                                                               const std::string& option = "--set");
 
 }  // namespace kestrel

@@ -405,3 +405,40 @@ TEST(ExrLoaderRobustness, FifoSidecarsAreRefusedWithoutReading) {
         EXPECT_NE(msg.find("not a regular file"), std::string::npos) << msg;
     }
 }
+
+// Blender's single-layer "OpenEXR" format holds Combined only (R, G, B, A): every G-buffer
+// output it lacks says to save as OpenEXR MultiLayer, not which channel name is missing.
+TEST(ExrLoaderRobustness, SingleLayerFileSaysSaveAsMultiLayer) {
+    TempDir tmp("singlelayer");
+    Channels ch = rgb(2, 2);
+    ch["A"].assign(4, 1.f);
+    writeExr(tmp.path / "b.0001.exr", box(0, 0, 1, 1), ch);
+    auto h = PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / "b.####.exr").string()}});
+    RecordingResolve rc(1);
+    h.pass().resolve(rc);
+    ASSERT_EQ(rc.absent.count("depth"), 1u);
+    EXPECT_EQ(rc.absent["depth"].rfind("a single-layer EXR (channels A, B, G, R) has no channel "
+                                       "depth.Z: save the render as OpenEXR MultiLayer",
+                                       0),
+              0u)
+        << rc.absent["depth"];
+    EXPECT_NE(rc.absent["normal"].find("OpenEXR MultiLayer"), std::string::npos);
+    EXPECT_EQ(rc.absent.count("color"), 0u);
+}
+
+// A bare Z (OpenEXR's convention for depth) is the depth of a single-layer file.
+TEST(ExrLoaderRobustness, BareZChannelIsDepth) {
+    TempDir tmp("barez");
+    Channels ch = rgb(2, 2);
+    ch["Z"] = {1.f, 2.f, 3.f, 4.f};
+    writeExr(tmp.path / "b.0001.exr", box(0, 0, 1, 1), ch);
+    auto h = PassHarness::make<ExrLoader>({2, 2}, {{"path", (tmp.path / "b.####.exr").string()}});
+    RecordingResolve rc(1);
+    h.pass().resolve(rc);
+    ASSERT_EQ(rc.absent.count("depth"), 0u) << rc.absent["depth"];
+    h.useOutputs({"color", "depth"});
+    h.ctx.frameNumber = 1;
+    h.run();
+    EXPECT_EQ(h.out("depth").at(0, 1, 0), 2.f);
+    EXPECT_EQ(h.out("depth").at(0, 1, 1), 4.f);
+}
