@@ -13,10 +13,25 @@ namespace {
 /// B3-spline taps (as A-Trous): a smooth footprint, the centre weighted most.
 constexpr float kKernel[5] = {1.f / 16, 1.f / 4, 3.f / 8, 1.f / 4, 1.f / 16};
 
+/// The inputs as planes of w x h floats (ids as int32), sanitised where they are read.
 struct Planes {
-    const ImageView &color, &length, &depth, &normal;
-    const ImageView* ids;
+    int w, h;
+    const float *c[3], *length, *depth, *n[3];
+    const int32_t* ids;  ///< null without the objectId input
+
+    float z(size_t i) const { return px::sanitizeDepth(depth[i]); }
+    float nrm(int k, size_t i) const { return px::sanitizeNormal(n[k][i]); }
 };
+
+/// max(0, dot)^p: repeated squaring for the powers of two (8 by default), else std::pow.
+float normalWeight(float dot, float p) {
+    const float d = std::min(dot, 1.f);
+    if (p == 8.f) {
+        const float d2 = d * d, d4 = d2 * d2;
+        return d4 * d4;
+    }
+    return std::pow(d, p);
+}
 
 /// The depth slope through a pixel from its neighbours' differences b and f: the smaller where
 /// both agree in sign (a slope, or a slope beside a depth edge), else 0 (a ridge, a valley, a
@@ -39,39 +54,42 @@ int strideFor(float hl, const HistoryFixPass::Settings& s) {
 /// The filled colour of pixel (x, y) with tap spacing `step` > 0, into out[3].
 void fillPixel(const Planes& p, const HistoryFixPass::Settings& s, int x, int y, int step,
                float out[3]) {
-    const int w = p.color.width(), h = p.color.height();
-    auto z = [&](int xx, int yy) { return px::sanitizeDepth(p.depth.at(0, xx, yy)); };
-    auto n = [&](int c, int xx, int yy) { return px::sanitizeNormal(p.normal.at(c, xx, yy)); };
-    const float zp = z(x, y);
+    const int w = p.w, h = p.h;
+    const size_t ip = size_t(y) * size_t(w) + size_t(x);
+    const float zp = p.z(ip);
     const bool l = x > 0, r = x + 1 < w, u = y > 0, d = y + 1 < h;
-    const float gx = slope(l ? z(x - 1, y) : 0, zp, r ? z(x + 1, y) : 0, l, r);
-    const float gy = slope(u ? z(x, y - 1) : 0, zp, d ? z(x, y + 1) : 0, u, d);
-    const int32_t id = p.ids ? p.ids->atInt(x, y) : 0;
+    const float gx = slope(l ? p.z(ip - 1) : 0, zp, r ? p.z(ip + 1) : 0, l, r);
+    const float gy = slope(u ? p.z(ip - size_t(w)) : 0, zp, d ? p.z(ip + size_t(w)) : 0, u, d);
+    const int32_t id = p.ids ? p.ids[ip] : 0;
+    const float n0 = p.nrm(0, ip), n1 = p.nrm(1, ip), n2 = p.nrm(2, ip);
     float sw = 0.f, sc[3] = {0.f, 0.f, 0.f};
-    for (int j = -2; j <= 2; ++j)
+    for (int j = -2; j <= 2; ++j) {
+        const int yq = y + j * step;
+        if (yq < 0 || yq >= h) continue;
         for (int i = -2; i <= 2; ++i) {
-            const int dx = i * step, dy = j * step, xq = x + dx, yq = y + dy;
-            if (xq < 0 || xq >= w || yq < 0 || yq >= h) continue;
+            const int dx = i * step, dy = j * step, xq = x + dx;
+            if (xq < 0 || xq >= w) continue;
+            const size_t q = size_t(yq) * size_t(w) + size_t(xq);
             float wt = kKernel[i + 2] * kKernel[j + 2];
             if (i != 0 || j != 0) {
-                if (p.ids && p.ids->atInt(xq, yq) != id) continue;
-                const float zq = z(xq, yq);
+                if (p.ids && p.ids[q] != id) continue;
+                const float zq = p.z(q);
                 if (zq >= kBackgroundDepth) continue;
                 // The depth the surface's slope predicts there, within depthSlack of the depth
                 // per pixel of distance (a plane seen at a grazing angle, a gentle curve).
                 const float predicted = zp + gx * float(dx) + gy * float(dy);
                 const float tolerance = s.depthSlack * zp * float(std::abs(dx) + std::abs(dy));
                 if (!(std::fabs(zq - predicted) <= tolerance)) continue;
-                const float dot = n(0, x, y) * n(0, xq, yq) + n(1, x, y) * n(1, xq, yq) +
-                                  n(2, x, y) * n(2, xq, yq);
+                const float dot = n0 * p.nrm(0, q) + n1 * p.nrm(1, q) + n2 * p.nrm(2, q);
                 if (!(dot > 0.f)) continue;
-                wt *= std::pow(std::min(dot, 1.f), s.normalPower);
+                wt *= normalWeight(dot, s.normalPower);
             }
             // Each tap counts as the samples its history holds (its noise falls as 1 / length).
-            wt *= px::sanitizePositive(p.length.at(0, xq, yq), 1e6f) + 1e-3f;
+            wt *= px::sanitizePositive(p.length[q], 1e6f) + 1e-3f;
             sw += wt;
-            for (int c = 0; c < 3; ++c) sc[c] += wt * px::sanitize(p.color.at(c, xq, yq));
+            for (int c = 0; c < 3; ++c) sc[c] += wt * px::sanitize(p.c[c][q]);
         }
+    }
     for (int c = 0; c < 3; ++c) out[c] = sc[c] / sw;  // sw > 0: the centre always counts
 }
 
@@ -109,22 +127,30 @@ HistoryFixPass::HistoryFixPass(const ParamValues& p)
          p.getFloat("depthSlack")} {}
 
 void HistoryFixPass::execute(FrameContext& ctx, PassIO& io) {
-    const Planes p{io.input("color"), io.input("historyLength"), io.input("depth"),
-                   io.input("normal"), io.hasInput("objectId") ? &io.input("objectId") : nullptr};
+    const ImageView &color = io.input("color"), &normal = io.input("normal");
+    const int w = ctx.extent.width, h = ctx.extent.height;
+    const Planes p{w,
+                   h,
+                   {color.channel(0), color.channel(1), color.channel(2)},
+                   io.input("historyLength").channel(0),
+                   io.input("depth").channel(0),
+                   {normal.channel(0), normal.channel(1), normal.channel(2)},
+                   io.hasInput("objectId") ? io.input("objectId").ints() : nullptr};
     const ImageView& out = io.output("color");
-    const int w = ctx.extent.width;
-    ctx.parallelRows(ctx.extent.height, [&](int y0, int y1) {
-        for (int y = y0; y < y1; ++y)
+    float* o[3] = {out.channel(0), out.channel(1), out.channel(2)};
+    ctx.parallelRows(h, [&](int y0, int y1) {
+        for (int y = y0; y < y1; ++y) {
+            const size_t row = size_t(y) * size_t(w);
+            for (int c = 0; c < 3; ++c)  // most pixels have a history: copied, sanitised
+                for (size_t i = row; i < row + size_t(w); ++i) o[c][i] = px::sanitize(p.c[c][i]);
             for (int x = 0; x < w; ++x) {
-                const float hl = px::sanitizePositive(p.length.at(0, x, y), 1e6f);
-                const int step = strideFor(hl, s_);
+                const size_t i = row + size_t(x);
+                const int step = strideFor(px::sanitizePositive(p.length[i], 1e6f), s_);
+                if (step == 0 || p.z(i) >= kBackgroundDepth) continue;
                 float c[3];
-                if (step > 0 && px::sanitizeDepth(p.depth.at(0, x, y)) < kBackgroundDepth) {
-                    fillPixel(p, s_, x, y, step, c);
-                } else {
-                    for (int k = 0; k < 3; ++k) c[k] = px::sanitize(p.color.at(k, x, y));
-                }
-                for (int k = 0; k < 3; ++k) out.at(k, x, y) = c[k];
+                fillPixel(p, s_, x, y, step, c);
+                for (int k = 0; k < 3; ++k) o[k][i] = c[k];
             }
+        }
     });
 }
