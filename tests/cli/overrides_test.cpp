@@ -23,8 +23,9 @@ protected:
     void SetUp() override {
         CliResult room = box.run({"scenegen", "--scene", "room", "--out", "room", "--width", "16",
                                   "--height", "12", "--frames", "4", "--spp", "2"});
+        // 48x32: large enough for the loader to see the street is point-sampled (TAA left out).
         CliResult street = box.run({"scenegen", "--scene", "street", "--out", "street", "--width",
-                                    "16", "--height", "12", "--frames", "2", "--spp", "2"});
+                                    "48", "--height", "32", "--frames", "2", "--spp", "2"});
         if (room.code != 0 || street.code != 0) GTEST_SKIP() << "no scenegen in this build";
     }
     /// `kestrel CMD svgf.json --input SCENE/noisy/frame_####.exr EXTRA...`.

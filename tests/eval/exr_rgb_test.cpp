@@ -92,7 +92,7 @@ TEST(ExrRgb, ReadsBlenderStyleCombinedAndHalf) {
 
 TEST(ExrRgb, ErrorsNameTheFile) {
     const fs::path d = tempDir();
-    expectErrorContaining([&] { readExrRgb(d / "missing.exr"); }, {"missing.exr", "no such file"});
+    expectErrorContaining([&] { readExrRgb(d / "missing.exr"); }, {"missing.exr", "No such file"});
 
     writeExr(d / "gray.exr", 2, 2, {"Y"});
     expectErrorContaining([&] { readExrRgb(d / "gray.exr"); }, {"gray.exr", "no R,G,B", "Y"});
