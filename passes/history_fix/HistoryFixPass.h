@@ -2,8 +2,8 @@
 // HistoryFix: fills the colour of pixels with a short history (a disocclusion, a camera cut, the
 // first frame, a history anti-lag shortened) from their neighbours on the same surface, before
 // the variance estimate and the spatial filters see it. After NRD ReBLUR's history fix: the
-// blur's stride shrinks as the history grows, its weights are geometry and each neighbour's own
-// history length, never luminance.
+// blur's stride and its share of the result shrink as the history grows, its weights are
+// geometry and each neighbour's own history length, never luminance.
 //
 // Why: with one or two samples a pixel's colour is often 0 (most 1-spp paths of dim indirect
 // light carry nothing), and the filters downstream stop at geometry (normals at sigmaN 128 on a

@@ -1,5 +1,6 @@
 // HistoryFix: a pixel with no history takes its neighbours on the same surface (never across an
-// object or a depth edge), a pixel with a history passes unchanged, non-finite inputs give finite
+// object or a depth edge), one with a short history keeps a growing share of its own colour, a
+// pixel with a history passes unchanged, non-finite inputs give finite
 // outputs, and the result does not depend on the thread count.
 #include <gtest/gtest.h>
 
@@ -53,6 +54,20 @@ TEST(HistoryFix, PixelWithoutHistoryTakesItsNeighbours) {
 TEST(HistoryFix, PixelWithAHistoryPassesUnchanged) {
     auto h = run(wall(8.f, 8.f));
     EXPECT_EQ(h.out("color").at(0, 3, 3), 0.f);
+}
+
+// Between no history and `frames` (4) the pixel keeps a share of its own colour that grows
+// with its history: (hl - 1) / 3 of it at hl = 2 and 3, the rest filled. A step (all fill up to
+// 2.5 frames, none after) blurred two-frame-old pixels as much as new ones (frame 2 of every
+// zoo scene lost 0.3 dB) and left a three-frame-old black pixel black.
+TEST(HistoryFix, OwnColourShareGrowsWithTheHistory) {
+    for (float hl : {2.f, 3.f}) {
+        const float own = (hl - 1.f) / 3.f;
+        const float got = run(wall(hl, 8.f)).out("color").at(0, 3, 3);
+        // The fill is close to the neighbours' 1 (the centre weighs hl against 24 x 8).
+        EXPECT_NEAR(got, 1.f - own, 0.03f) << "historyLength " << hl;
+        EXPECT_LT(got, 1.f - own + 1e-6f) << "historyLength " << hl;
+    }
 }
 
 TEST(HistoryFix, NeverTakesAnotherObjectOrSurface) {
