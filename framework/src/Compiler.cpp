@@ -563,7 +563,7 @@ private:
             if (n.absent) {
                 g_->report.pruned.push_back({n.name, n.absentWhy});
             } else if (n.live) {
-                std::string why = "identity for this scene (outputs forwarded)";
+                std::string why = kIdentityForItsParameters;
                 if (!n.notes.empty()) why = n.notes.back();
                 g_->report.elided.push_back({n.name, why});
             } else {

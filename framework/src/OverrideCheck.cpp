@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "CompilerImpl.h"
 #include "kestrel/Compiler.h"
 
 namespace kestrel {
@@ -40,8 +41,15 @@ class Checker {
 public:
     Checker(const CompiledGraph& c, const Registry& r) : compiled_(c), registry_(r) {
         for (const auto& n : c.executionOrder()) live_.insert(n);
-        for (const auto* list : {&c.report().pruned, &c.report().elided})
-            for (const auto& p : *list) leftOut_[p.pass] = p.reason;
+        // A pass elided as the identity for its parameters ('*.antilag.enabled=false' makes it
+        // so) counts as reached: the override took effect. One elided for a fact of the scene
+        // (TAA on a point-sampled render) does not.
+        for (const auto& p : c.report().elided)
+            if (p.reason == kIdentityForItsParameters)
+                live_.insert(p.pass);
+            else
+                leftOut_[p.pass] = p.reason;
+        for (const auto& p : c.report().pruned) leftOut_[p.pass] = p.reason;
     }
 
     /// The Diagnostic for one assignment, or nothing when it reaches a live pass.
