@@ -17,7 +17,7 @@ shared=../shared/data
 out=docs/quality.md
 threads=2
 frames=1-12
-zoo=(room room-cut street street-jittered street-static street-cloud fireflies)
+zoo=(room room-cut room-lamp street street-jittered street-static street-cloud fireflies)
 public=(blender-sample-room blender-street blender-street-defaults blender-showroom)
 
 if [[ ! -x $bin ]]; then

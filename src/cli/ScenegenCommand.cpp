@@ -36,9 +36,15 @@ void overrideGiven(scenegen::SceneOptions& zoo, const scenegen::SceneOptions& gi
     if (given_("--camera-cut")) zoo.cameraCutFrame = given.cameraCutFrame;
     if (given_("--light-change")) zoo.lightChangeFrame = given.lightChangeFrame;
     if (given_("--light-scale")) zoo.lightChangeScale = given.lightChangeScale;
+    if (given_("--light-swing")) zoo.lightSwing = given.lightSwing;
     if (given_("--pixel-filter")) zoo.pixelFilterWidth = given.pixelFilterWidth;
     if (given_("--exposure")) zoo.exposure = given.exposure;
     zoo.threads = given.threads;
+}
+
+/// The message with "scenegen: " in front, once (the library's own messages start with it).
+std::string prefixed(const std::string& what) {
+    return what.rfind("scenegen: ", 0) == 0 ? what : "scenegen: " + what;
 }
 
 /// Whether `dir` does not exist, or is a folder with nothing in it. A render folder scenegen did
@@ -86,6 +92,9 @@ void addScenegenCommand(CLI::App& app, Action& action) {
     cmd->add_option("--light-scale", o->scene.lightChangeScale,
                     "Street scenes: the lights' strength from --light-change on (default 0.2)")
         ->check(CLI::Range(0.0, 1e6));
+    cmd->add_option("--light-swing", o->scene.lightSwing,
+                    "Room: the ceiling light swings along x by up to this many metres (0: still)")
+        ->check(CLI::Range(0.0, 1.3));
     cmd->add_option("--pixel-filter", o->scene.pixelFilterWidth,
                     "Blackman-Harris pixel filter width in pixels (0: pixel centres; street "
                     "scenes only; Blender's default is 1.5)")
@@ -121,10 +130,10 @@ void addScenegenCommand(CLI::App& app, Action& action) {
                 spdlog::info("scenegen: {} frames ({} files) in {} in {:.2f} s",
                              stats.framesWritten, stats.filesWritten, o->out, stats.seconds);
             } catch (const std::invalid_argument& e) {
-                std::cerr << "error: scenegen: " << e.what() << "\n";
+                std::cerr << "error: " << prefixed(e.what()) << "\n";
                 return 2;
             } catch (const std::exception& e) {
-                std::cerr << "error: scenegen: " << e.what() << "\n";
+                std::cerr << "error: " << prefixed(e.what()) << "\n";
                 return 1;
             }
             return 0;

@@ -23,6 +23,10 @@ void checkOptions(const SceneOptions& o) {
         throw std::invalid_argument("scenegen: the room scene has no pixel filter (use a street)");
     if (o.kind == SceneOptions::Kind::Room && o.lightChangeFrame >= 0)
         throw std::invalid_argument("scenegen: the room scene has no light change (use a street)");
+    if (!(o.lightSwing >= 0.f && o.lightSwing <= 1.3f))
+        throw std::invalid_argument("scenegen: lightSwing must be in 0..1.3 (the room is 4 wide)");
+    if (o.kind != SceneOptions::Kind::Room && o.lightSwing > 0.f)
+        throw std::invalid_argument("scenegen: only the room's light swings (use the room)");
     if (!(o.lightChangeScale >= 0.f && o.lightChangeScale <= 1e6f))
         throw std::invalid_argument("scenegen: lightChangeScale must be in 0..1e6");
 }

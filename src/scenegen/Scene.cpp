@@ -156,6 +156,11 @@ SceneState makeScene(const SceneOptions& opt, int frame) {
     s.objectToWorld[kMovingSphere] =
         rigidY(0.f, {-0.2f + 0.9f * std::sin(0.25f * objT), 0.3f, -1.2f});
     s.objectToWorld[kGlowSphere] = rigidY(0.f, {1.0f, 0.83f, -2.4f});
+    // The ceiling light swinging along x (lightSwing; 0: still): its pool and the shadows move
+    // where the geometry does not. Its object transform moves with it, so the motion vectors of
+    // the light itself are right.
+    const float swing = opt.lightSwing * std::sin(0.35f * float(frame - 1));
+    s.objectToWorld[kAreaLight] = rigidY(0.f, {swing, 0.f, 0.f});
     for (int i = 0; i < kObjectCount; ++i) s.worldToObject[i] = rigidInverse(s.objectToWorld[i]);
 
     // Walls: normals point into the room.
@@ -165,7 +170,7 @@ SceneState makeScene(const SceneOptions& opt, int frame) {
     s.quads[3] = quad(0, kX0, kY0, kY1, kZ0, kZ1, {1, 0, 0}, kLeftWall);  // x: u = y, v = z
     s.quads[4] = quad(0, kX1, kY0, kY1, kZ0, kZ1, {-1, 0, 0}, kRightWall);
     s.lightY = kY1 - 0.01f;
-    s.lightX0 = -0.7f, s.lightX1 = 0.7f, s.lightZ0 = -3.1f, s.lightZ1 = -1.7f;
+    s.lightX0 = -0.7f + swing, s.lightX1 = 0.7f + swing, s.lightZ0 = -3.1f, s.lightZ1 = -1.7f;
     s.lightArea = (s.lightX1 - s.lightX0) * (s.lightZ1 - s.lightZ0);
     s.lightRadiance = {16.f, 14.5f, 12.5f};
     s.quads[5] =

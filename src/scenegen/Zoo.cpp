@@ -30,6 +30,12 @@ std::vector<ZooScene> zooScenes() {
     SceneOptions cut = zooBase(Kind::Room);
     cut.cameraCutFrame = 7;
     zoo.push_back({"room-cut", cut, "the room with a camera cut at frame 7 (history must reset)"});
+    SceneOptions lamp = zooBase(Kind::Room);
+    lamp.lightSwing = 1.1f;
+    zoo.push_back({"room-lamp", lamp,
+                   "the room with its ceiling light swinging from side to side (1.1 m): the lit "
+                   "pool and the shadows move where the geometry does not, so the history must "
+                   "let go of the old light there and keep it everywhere else"});
     zoo.push_back({"street", zooBase(Kind::Street),
                    "outdoor: gradient sky (color = emission, depth 1e10), sun, brick paving a few "
                    "px per brick, window-grid facades with glossy windows, a glossy gold sphere, "

@@ -104,6 +104,47 @@ TEST(SceneZoo, LightChangeDimsTheSunFromItsFrameOn) {
     EXPECT_LT(dim, 0.8 * lit);
 }
 
+// room-lamp is the room with its ceiling light displaced along x: the same geometry (ids and
+// depth) everywhere but the light, a different lit pool; the light's object transform moves
+// with it, so its motion vectors reproject it. At no swing it is the room, to the bit.
+TEST(SceneZoo, RoomLampSwingsTheLightOverTheSameGeometry) {
+    SceneOptions room = zoo("room"), lamp = zoo("room-lamp");
+    room.referenceSpp = lamp.referenceSpp = 4;
+    room.staticCamera = lamp.staticCamera = true;
+    room.movingObject = lamp.movingObject = false;
+    EXPECT_GT(lamp.lightSwing, 0.5f);
+    EXPECT_EQ(renderReference(room, 1), renderReference(lamp, 1));  // sin(0) = 0: no swing yet
+    const int frame = 5;  // 1.1 sin(1.4): about a metre to the side
+    const FrameAovs a = renderFrame(room, frame), b = renderFrame(lamp, frame);
+    const int light = 10;  // kAreaLight
+    size_t sameGeometry = 0, onLight = 0, n = a.objectId.size();
+    for (size_t k = 0; k < n; ++k) {
+        onLight += a.objectId[k] == light || b.objectId[k] == light;
+        sameGeometry += a.objectId[k] == b.objectId[k] && a.objectId[k] != light;
+    }
+    EXPECT_EQ(sameGeometry + onLight, n) << "only the light's own pixels may differ in id";
+    const Mat4& m = b.objectToWorld.at(light);
+    EXPECT_NEAR(m[3], lamp.lightSwing * std::sin(0.35f * float(frame - 1)), 1e-5f);
+    // The light moved to +x: the right half of the frame gains light against the left.
+    auto rightOverLeft = [&](const std::vector<float>& ref) {
+        double left = 0, right = 0;
+        for (int j = 0; j < a.height; ++j)
+            for (int i = 0; i < a.width; ++i) {
+                const size_t k = size_t(j) * size_t(a.width) + size_t(i);
+                (2 * i < a.width ? left : right) += ref[k];  // the R plane
+            }
+        return right / std::max(left, 1e-9);
+    };
+    const double still = rightOverLeft(renderReference(room, frame)),
+                 swung = rightOverLeft(renderReference(lamp, frame));
+    std::printf("room-lamp frame %d: right/left radiance %.2f (the room: %.2f)\n", frame, swung,
+                still);
+    EXPECT_GT(swung, 1.2 * still) << "the lit pool moved to the right";
+    SceneOptions street = zoo("street");
+    street.lightSwing = 0.5f;  // only the room's light swings: refused, not ignored
+    EXPECT_THROW(renderFrame(street, 1), std::invalid_argument);
+}
+
 TEST(SceneZoo, EverySceneIsIdenticalWhateverTheThreadCount) {
     for (const ZooScene& z : zooScenes()) {
         SceneOptions a = z.options;

@@ -41,6 +41,9 @@ struct SceneOptions {
     /// the history is stale. -1: no change. Street kinds only.
     int lightChangeFrame = -1;
     float lightChangeScale = 0.2f;
+    /// Room only: the ceiling light swings along x by up to this many metres (its centre at
+    /// lightSwing * sin(0.35 (frame - 1))): a lamp whose pool and shadows move. 0: still.
+    float lightSwing = 0.f;
     /// Surface interactions per path, each with next-event estimation: 1 = direct light only,
     /// 2 = direct + one indirect bounce (the default), 3 = two indirect bounces.
     int bounces = 2;
