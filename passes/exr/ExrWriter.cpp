@@ -5,6 +5,7 @@
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfOutputFile.h>
+#include <OpenEXR/ImfStandardAttributes.h>
 #include <OpenEXR/ImfStdIO.h>
 #include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/ImfThreading.h>
@@ -32,6 +33,10 @@ namespace kestrel::exr {
 namespace fs = std::filesystem;
 
 namespace {
+
+/// ITU-R BT.709 primaries and the D65 white point (CIE xy), as the chromaticities attribute.
+const Imf::Chromaticities kRec709({0.64f, 0.33f}, {0.30f, 0.60f}, {0.15f, 0.06f},
+                                  {0.3127f, 0.3290f});
 const std::vector<std::string> kCompressions = {"none",  "rle", "zips", "zip",  "piz",
                                                 "pxr24", "b44", "b44a", "dwaa", "dwab"};
 Imf::Compression compressionOf(const std::string& s) {
@@ -290,6 +295,9 @@ void ExrWriter::writeExr(const ImageView& img, const std::string& file, const Fr
     const Imf::PixelType type = asHalf ? Imf::HALF : Imf::FLOAT;
     const size_t elem = asHalf ? sizeof(half) : sizeof(float);
     for (int c = 0; c < C; ++c) header.channels().insert(ids ? "id" : rgba[c], Imf::Channel(type));
+    // Rec.709 primaries and D65 white (Blender's and most renderers' scene-linear): without
+    // the attribute a compositor or OCIO-aware viewer has to guess the colour space.
+    if (!ids) Imf::addChromaticities(header, kRec709);
     if (ctx.run) {
         header.insert("kestrel.graph", Imf::StringAttribute(ctx.run->graphName));
         header.insert("kestrel.provenance", Imf::StringAttribute(ctx.run->provenance));
