@@ -232,12 +232,13 @@ struct Builder {
 
 }  // namespace
 
-std::optional<std::string> blenderLayer(const std::set<std::string>& channels) {
+std::vector<std::string> blenderLayers(const std::set<std::string>& channels) {
     const std::string tail = ".Combined.R";
+    std::vector<std::string> layers;  // in the set's (name) order
     for (const auto& c : channels)
         if (c.size() > tail.size() && c.compare(c.size() - tail.size(), tail.size(), tail) == 0)
-            return c.substr(0, c.size() - tail.size());
-    return std::nullopt;
+            layers.push_back(c.substr(0, c.size() - tail.size()));
+    return layers;
 }
 
 /// The canonical split's contract (docs/canonical-layout.md) is color == diffuse + specular +
