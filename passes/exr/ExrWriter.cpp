@@ -169,6 +169,9 @@ PassDesc ExrWriter::describe() {
                "Writes each frame to an EXR file (atomically, with provenance) and optionally a "
                "tone-mapped PNG preview");
     d.input("color", Format::Any, "image to write (1-4 float channels as R,G,B,A; Int32 as id)");
+    d.optionalInput("alpha", Format::Float,
+                    "written as the A channel of a 3-channel color (the loader's alpha: the "
+                    "input's coverage kept for compositing); unbound or absent: no A");
     d.paramString("path", "out/frame.####.exr", "output frame pattern (####, @, %04d)");
     d.paramEnum("pixelType", "auto", {"auto", "half", "float"},
                 "EXR pixel type of float channels (ids are always float); auto: half where the "
@@ -226,11 +229,22 @@ bool ExrWriter::frameWritten(int64_t frame) const {
     return false;
 }
 
+namespace {
+/// RGB colour and the alpha input as one RGBA view (no copy); the colour alone otherwise.
+ImageView withAlpha(const ImageView& color, const PassIO& io) {
+    if (color.format != Format::Float3 || !io.hasInput("alpha")) return color;
+    ImageView rgba = color;
+    rgba.format = Format::Float4;
+    rgba.planes[3] = io.input("alpha").planes[0];
+    return rgba;
+}
+}  // namespace
+
 void ExrWriter::execute(FrameContext& ctx, PassIO& io) {
     if (!ctx.writeOutputs) return;
     const ImageView& img = io.input("color");
     std::string file = path_.expand(ctx.frameNumber);
-    writeExr(img, file, ctx, {io.idlePlanes(), ctx.extent.pixels() * sizeof(float)});
+    writeExr(withAlpha(img, io), file, ctx, {io.idlePlanes(), ctx.extent.pixels() * sizeof(float)});
     if (preview_) {
         std::string png = preview_->expand(ctx.frameNumber);
         std::string tmp = tempName(png);

@@ -492,3 +492,18 @@ TEST(ExrLoaderRobustness, SeveralViewLayersAreRefusedUnlessOneIsChosen) {
         resolveError({{"path", (tmp.path / "c.####.exr").string()}, {"layer", "Night"}});
     EXPECT_NE(canonical.find("is not a Blender multilayer EXR"), std::string::npos) << canonical;
 }
+
+// Cycles' Combined is RGBA: its A (the coverage, with Film > Transparent) is the alpha output.
+TEST(ExrLoaderRobustness, BlenderCombinedAlphaIsTheAlphaOutput) {
+    TempDir tmp("alpha");
+    Channels ch;
+    for (const char* c : {"R", "G", "B"}) ch[std::string("ViewLayer.Combined.") + c].assign(2, 1.f);
+    ch["ViewLayer.Combined.A"] = {0.f, 0.5f};
+    writeExr(tmp.path / "r.0001.exr", box(0, 0, 1, 0), ch);
+    auto h = PassHarness::make<ExrLoader>({2, 1}, {{"path", (tmp.path / "r.####.exr").string()}});
+    h.useOutputs({"color", "alpha"});
+    h.ctx.frameNumber = 1;
+    h.run();
+    EXPECT_EQ(h.out("alpha").at(0, 0, 0), 0.f);
+    EXPECT_EQ(h.out("alpha").at(0, 1, 0), 0.5f);
+}
