@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 #include <regex>
 #include <set>
+#include <thread>
 
 #include "CliRunner.h"
 
@@ -357,4 +358,59 @@ TEST_F(Farm, OpenjdRefusesAPathOpenjdWouldReadAsAFormatString) {
               std::string::npos)
         << r.errorLines()[0];
     EXPECT_TRUE(r.out.empty()) << r.out;
+}
+
+// Cancelling an OpenJD task (NOTIFY_THEN_TERMINATE) sends SIGTERM to the task's process: the
+// embedded script passes it on, kestrel finishes the frame in progress, and the task exits 143
+// with every written frame complete and the log saying so.
+TEST_F(Farm, OpenjdTaskPassesSigtermOnToKestrel) {
+    // One 64x48 frame linked as frames 1..200 through slow.json (three A-Trous passes, one
+    // thread): long enough to be cancelled mid-way.
+    if (!makeZooScene("room", 1)) GTEST_SKIP() << "no scenegen in this build";
+    const fs::path noisy = box.work() / "scene" / "noisy";
+    for (int f = 2; f <= 200; ++f) {
+        char name[32];
+        std::snprintf(name, sizeof name, "frame_%04d.exr", f);
+        fs::create_symlink("frame_0001.exr", noisy / name);
+    }
+    CliResult plan = box.run(
+        {"farm", "plan", (fs::path(KESTREL_SOURCE_DIR) / "tests/cli/graphs/slow.json").string(),
+         "--input", "scene/noisy/frame_####.exr", "--output", "out/frame_####.exr", "--frames",
+         "1-200", "--chunk", "200", "--threads", "1", "--format", "openjd", "--out", "../t.json"});
+    ASSERT_EQ(plan.code, 0) << plan.all();
+    const auto j = nlohmann::json::parse(readText(box.root() / "t.json"));
+    const fs::path script = box.root() / "task.sh", log = box.root() / "task.out";
+    writeText(script, j["steps"][0]["script"]["embeddedFiles"][0]["data"].get<std::string>());
+
+    const pid_t pid = ::fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {  // the worker's process for the task: bash SCRIPT CHUNK
+        if (::chdir(box.work().c_str()) != 0) ::_exit(127);
+        std::FILE* f = std::freopen(log.c_str(), "w", stdout);
+        if (!f || ::dup2(1, 2) < 0) ::_exit(127);
+        ::setenv("KESTREL_PLUGIN_PATH", "", 1);
+        ::execlp("bash", "bash", script.c_str(), "1-200", static_cast<char*>(nullptr));
+        ::_exit(127);
+    }
+    const fs::path out = box.work() / "out";
+    int status = 0;
+    bool exited = false;
+    for (int i = 0; i < 30000 && countFiles(out, ".exr") == 0; ++i) {
+        if (::waitpid(pid, &status, WNOHANG) == pid) {
+            exited = true;
+            break;
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    ASSERT_FALSE(exited) << "the task ended before writing a frame:\n" << readText(log);
+    ::kill(pid, SIGTERM);  // the shell only, as a worker signals the process it started
+    ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+    const std::string text = readText(log);
+    ASSERT_TRUE(WIFEXITED(status)) << "killed by signal " << WTERMSIG(status) << "\n" << text;
+    EXPECT_EQ(WEXITSTATUS(status), 143) << text;
+    EXPECT_NE(text.find("interrupted (SIGTERM)"), std::string::npos) << text;
+    EXPECT_NE(text.find("run finished: exit 143"), std::string::npos) << text;
+    const int written = countFiles(out, ".exr");
+    EXPECT_GE(written, 1);
+    EXPECT_LT(written, 200) << "the cancel did not reach kestrel";
 }
