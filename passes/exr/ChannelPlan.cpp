@@ -68,6 +68,9 @@ const std::vector<OutputSpec>& loaderOutputs() {
         {"position", Format::Float3, 0.f, "world-space position"},
         {"motion", Format::Float2, 0.f, "motion to the previous frame in pixels, y down"},
         {"objectId", Format::Int32, float(kBackgroundId), "object id, -1 on background"},
+        {"alpha", Format::Float, 0.f,
+         "coverage of the beauty (Blender Combined.A, canonical A), for the output's A channel; "
+         "0 outside the data window"},
         {"reflection", Format::Float, 0.f,
          "1 where the pixel's features describe what a near-specular surface shows (a mirror, "
          "a polished floor: Cycles' denoising features pass such bounces), 0 elsewhere"},
@@ -232,12 +235,13 @@ struct Builder {
 
 }  // namespace
 
-std::optional<std::string> blenderLayer(const std::set<std::string>& channels) {
+std::vector<std::string> blenderLayers(const std::set<std::string>& channels) {
     const std::string tail = ".Combined.R";
+    std::vector<std::string> layers;  // in the set's (name) order
     for (const auto& c : channels)
         if (c.size() > tail.size() && c.compare(c.size() - tail.size(), tail.size(), tail) == 0)
-            return c.substr(0, c.size() - tail.size());
-    return std::nullopt;
+            layers.push_back(c.substr(0, c.size() - tail.size()));
+    return layers;
 }
 
 /// The canonical split's contract (docs/canonical-layout.md) is color == diffuse + specular +
@@ -286,7 +290,9 @@ Plan planCanonical(const ChannelSets& files) {
     b.set("color", {{""}});
     for (const auto& o : loaderOutputs())
         if (std::string(o.name) != "color" && !jitteredOf(o.name)) {
-            if (std::string(o.name) == "objectId") {
+            if (std::string(o.name) == "alpha") {
+                b.set(o.name, {{"A"}});  // the colour's alpha, beside R, G, B
+            } else if (std::string(o.name) == "objectId") {
                 // "objectId.id" (the documented name) or any single channel of the layer.
                 b.set(o.name, {{"objectId.id"}});
                 if (b.plan.find("objectId")->absent) b.set(o.name, {{"objectId"}});
@@ -311,6 +317,9 @@ Plan planBlender(const ChannelSets& files, const std::string& L) {
     // Light passes are divided by their colour pass (data/README.md):
     // Combined = (DiffDir + DiffInd)*DiffCol + (GlossDir + GlossInd)*GlossCol + Emit + Env.
     b.set("color", {{P("Combined")}});
+    // Cycles writes Combined as RGBA: with Film > Transparent the alpha is the coverage a
+    // compositor needs (1 everywhere otherwise).
+    b.setFirst("alpha", {P("Combined.A")}, "Combined (RGBA)");
     // What a user who ticks "Denoising Data" has stands in for a missing G-buffer pass (Cycles'
     // denoiser features: data/README.md); the proper passes win where both exist.
     b.setFirst("albedo", {P("DiffCol"), P("Denoising Albedo")}, "Light > Diffuse > Color");
@@ -424,7 +433,7 @@ Plan planGames202(const ChannelSets& files) {
     if (!depth.absent && resolveGroup(files, "ID", "Y", 1))
         depth.backgroundMask = ChannelRef{"ID", "Y"};
     for (const char* o : {"albedo", "emission", "direct", "indirect", "diffuse", "diffuseAlbedo",
-                          "specular", "specularAlbedo", "motion", "reflection"})
+                          "specular", "specularAlbedo", "motion", "reflection", "alpha"})
         b.absent(o,
                  std::string("buffer for ") + o + " (it has beauty, normal, position, depth, ID)");
     return b.plan;

@@ -115,8 +115,8 @@ Plan planGames202(const ChannelSets& files);
 /// channel: emission = color - diffuse - specular. Again after the channels parameter changed
 /// one of them; `keep`: outputs it set, left alone.
 void addSplitRest(Plan& plan, const std::set<std::string>& keep = {});
-/// The view layer holding "<layer>.Combined.R", or nullopt.
-std::optional<std::string> blenderLayer(const std::set<std::string>& channels);
+/// The view layers holding "<layer>.Combined.R", in name order (empty: not a Blender file).
+std::vector<std::string> blenderLayers(const std::set<std::string>& channels);
 
 /// Applies the `channels` parameter: "out=EXPR,out=EXPR,..." with EXPR a sum ('+') of products
 /// ('*') of channel groups; a group is a layer ("ViewLayer.DiffCol": its R,G,B or X,Y,Z...) or a

@@ -7,6 +7,7 @@
 #include <OpenEXR/ImfMatrixAttribute.h>
 #include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/ImfThreading.h>
+#include <kestrel/PixelMath.h>
 
 #include <algorithm>
 #include <array>
@@ -16,8 +17,6 @@
 #include <limits>
 #include <map>
 #include <set>
-
-#include <kestrel/PixelMath.h>
 
 #include "PixelJitter.h"
 #include "Unproject.h"
@@ -241,6 +240,9 @@ PassDesc ExrLoader::describe() {
                   "frame pattern (frame_####.exr, %04d, beauty_%d.exr) or a GAMES202 folder");
     d.paramEnum("layout", "auto", {"auto", "canonical", "blender", "games202"},
                 "file layout; auto: kestrel.layout attribute, Blender channels, beauty_*.exr");
+    d.paramString("layer", "",
+                  "Blender view layer to read; empty: the only one (a file with several is "
+                  "refused, naming them)");
     d.paramString("camera", "",
                   "Blender camera.json; empty: look beside the frames, then one folder up");
     d.paramString("channels", "",
@@ -268,6 +270,7 @@ ExrLoader::ExrLoader(const ParamValues& p)
       cameraParam_(p.getString("camera")),
       channelsParam_(p.getString("channels")),
       antiAliasedParam_(p.getString("antiAliased")),
+      layerParam_(p.getString("layer")),
       maxPixels_(p.getInt("maxPixels")),
       prefetch_(p.getBool("prefetch")) {}
 
@@ -394,6 +397,31 @@ std::vector<int64_t> ExrLoader::availableFrames() const {
     }
 }
 
+namespace {
+
+/// The view layer to read: `wanted`, else the only one. Several and none chosen is refused (a
+/// silent pick would denoise the wrong layer). nullopt: no Blender layer at all.
+std::optional<std::string> chooseLayer(const std::vector<std::string>& layers,
+                                       const std::string& wanted, const std::string& file) {
+    std::string names;
+    for (const auto& l : layers) names += (names.empty() ? "" : ", ") + l;
+    if (!wanted.empty()) {
+        if (std::find(layers.begin(), layers.end(), wanted) == layers.end())
+            throw Error("layer '" + wanted + "': " + file +
+                        (layers.empty() ? " has no Blender view layer ('<layer>.Combined.R')"
+                                        : " has view layers " + names));
+        return wanted;
+    }
+    if (layers.size() > 1)
+        throw Error(file + " has " + std::to_string(layers.size()) + " view layers (" + names +
+                    "): choose one with the loader's layer parameter (--set input.layer=" +
+                    layers.front() + ")");
+    if (layers.empty()) return std::nullopt;
+    return layers.front();
+}
+
+}  // namespace
+
 void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
     if (planned_) return;
     if (path_.empty()) throw Error("ExrLoader: parameter 'path' is empty: give a frame pattern");
@@ -469,12 +497,13 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
             throw Error(firstPath + ": " + e.what());
         }
         sets[""] = channelNames(in->header());
-        auto layer = blenderLayer(sets[""]);
+        const auto layers = blenderLayers(sets[""]);
         const auto* tag = in->header().findTypedAttribute<Imf::StringAttribute>("kestrel.layout");
         Layout layout = Layout::Canonical;
-        if (layoutParam_ == "blender" || (layoutParam_ == "auto" && !tag && layer))
+        if (layoutParam_ == "blender" || (layoutParam_ == "auto" && !tag && !layers.empty()))
             layout = Layout::Blender;
         if (layout == Layout::Blender) {
+            const auto layer = chooseLayer(layers, layerParam_, firstPath);
             if (!layer)
                 throw Error("layout blender: " + firstPath +
                             " has no '<layer>.Combined.R' channel (not a Cycles multilayer EXR)");
@@ -504,6 +533,10 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
                         "by)");
             }
         } else {
+            if (!layerParam_.empty())  // a layer choice that would silently do nothing
+                throw Error("layer '" + layerParam_ + "': " + firstPath +
+                            " is not a Blender multilayer EXR (layout canonical): it has no view "
+                            "layers");
             plan_ = planCanonical(sets);
             if (!tag)
                 note("no kestrel.layout attribute: reading canonical channel names");

@@ -86,7 +86,7 @@ private:
     void joinPrefetch();
 
     // parameters
-    std::string path_, layoutParam_, cameraParam_, channelsParam_, antiAliasedParam_;
+    std::string path_, layoutParam_, cameraParam_, channelsParam_, antiAliasedParam_, layerParam_;
     int64_t maxPixels_;
     int threads_ = 1;  // the engine's, for decoding (set by beginFrame)
     bool prefetch_ = true;

@@ -5,6 +5,7 @@
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfOutputFile.h>
+#include <OpenEXR/ImfStandardAttributes.h>
 #include <OpenEXR/ImfStdIO.h>
 #include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/ImfThreading.h>
@@ -32,6 +33,10 @@ namespace kestrel::exr {
 namespace fs = std::filesystem;
 
 namespace {
+
+/// ITU-R BT.709 primaries and the D65 white point (CIE xy), as the chromaticities attribute.
+const Imf::Chromaticities kRec709({0.64f, 0.33f}, {0.30f, 0.60f}, {0.15f, 0.06f},
+                                  {0.3127f, 0.3290f});
 const std::vector<std::string> kCompressions = {"none",  "rle", "zips", "zip",  "piz",
                                                 "pxr24", "b44", "b44a", "dwaa", "dwab"};
 Imf::Compression compressionOf(const std::string& s) {
@@ -164,6 +169,9 @@ PassDesc ExrWriter::describe() {
                "Writes each frame to an EXR file (atomically, with provenance) and optionally a "
                "tone-mapped PNG preview");
     d.input("color", Format::Any, "image to write (1-4 float channels as R,G,B,A; Int32 as id)");
+    d.optionalInput("alpha", Format::Float,
+                    "written as the A channel of a 3-channel color (the loader's alpha: the "
+                    "input's coverage kept for compositing); unbound or absent: no A");
     d.paramString("path", "out/frame.####.exr", "output frame pattern (####, @, %04d)");
     d.paramEnum("pixelType", "auto", {"auto", "half", "float"},
                 "EXR pixel type of float channels (ids are always float); auto: half where the "
@@ -221,11 +229,22 @@ bool ExrWriter::frameWritten(int64_t frame) const {
     return false;
 }
 
+namespace {
+/// RGB colour and the alpha input as one RGBA view (no copy); the colour alone otherwise.
+ImageView withAlpha(const ImageView& color, const PassIO& io) {
+    if (color.format != Format::Float3 || !io.hasInput("alpha")) return color;
+    ImageView rgba = color;
+    rgba.format = Format::Float4;
+    rgba.planes[3] = io.input("alpha").planes[0];
+    return rgba;
+}
+}  // namespace
+
 void ExrWriter::execute(FrameContext& ctx, PassIO& io) {
     if (!ctx.writeOutputs) return;
     const ImageView& img = io.input("color");
     std::string file = path_.expand(ctx.frameNumber);
-    writeExr(img, file, ctx, {io.idlePlanes(), ctx.extent.pixels() * sizeof(float)});
+    writeExr(withAlpha(img, io), file, ctx, {io.idlePlanes(), ctx.extent.pixels() * sizeof(float)});
     if (preview_) {
         std::string png = preview_->expand(ctx.frameNumber);
         std::string tmp = tempName(png);
@@ -290,6 +309,9 @@ void ExrWriter::writeExr(const ImageView& img, const std::string& file, const Fr
     const Imf::PixelType type = asHalf ? Imf::HALF : Imf::FLOAT;
     const size_t elem = asHalf ? sizeof(half) : sizeof(float);
     for (int c = 0; c < C; ++c) header.channels().insert(ids ? "id" : rgba[c], Imf::Channel(type));
+    // Rec.709 primaries and D65 white (Blender's and most renderers' scene-linear): without
+    // the attribute a compositor or OCIO-aware viewer has to guess the colour space.
+    if (!ids) Imf::addChromaticities(header, kRec709);
     if (ctx.run) {
         header.insert("kestrel.graph", Imf::StringAttribute(ctx.run->graphName));
         header.insert("kestrel.provenance", Imf::StringAttribute(ctx.run->provenance));

@@ -106,6 +106,8 @@ int planCommand(FarmArgs a) {
         text = slurmScript(plan);
     else if (a.format == "commands")
         text = commandList(plan);
+    else if (a.format == "openjd")
+        text = openjdTemplate(plan).dump(2) + "\n";
     else
         text = planToJson(plan).dump(2) + "\n";
     std::error_code ec;
@@ -162,13 +164,16 @@ void addFarmCommand(CLI::App& app, Action& action) {
     auto planArgs = std::make_shared<FarmArgs>();
     auto* plan = farm->add_subcommand(
         "plan",
-        "Split --frames A-B into tasks of --chunk frames (Slurm array, command list, JSON)");
+        "Split --frames A-B into tasks of --chunk frames (Slurm array, OpenJD job template, "
+        "command list, JSON)");
     addPlanOptions(plan, *planArgs);
     plan->footer(
         "Other options are kestrel run options, given to every task (--threads 8, "
         "--skip-bad-frames). docs/farm.md has examples.");
-    plan->add_option("--format", planArgs->format, "slurm (sbatch script), commands, json")
-        ->check(CLI::IsMember({"slurm", "commands", "json"}));
+    plan->add_option("--format", planArgs->format,
+                     "slurm (sbatch script), openjd (OpenJD job template, JSON form), commands, "
+                     "json")
+        ->check(CLI::IsMember({"slurm", "openjd", "commands", "json"}));
     plan->add_option("--out", planArgs->out, "Write the plan to this file (default: stdout)");
     plan->callback([&action, planArgs, plan] {
         planArgs->plan.extra = passThrough(plan);

@@ -65,13 +65,18 @@ std::string shellQuote(const std::string& w) {
     return q + "'";
 }
 
-std::vector<std::string> FarmPlan::taskArgs(const FarmTask& t) const {
+std::vector<std::string> FarmPlan::runArgs() const {
     std::vector<std::string> a{kestrel, "run", graph};
     for (const auto& s : inputs) a.insert(a.end(), {"--input", s});
     for (const auto& s : outputs) a.insert(a.end(), {"--output", s});
     for (const auto& s : sets) a.insert(a.end(), {"--set", s});
     if (!cuts.empty()) a.insert(a.end(), {"--cuts", cuts});
     a.insert(a.end(), extra.begin(), extra.end());
+    return a;
+}
+
+std::vector<std::string> FarmPlan::taskArgs(const FarmTask& t) const {
+    std::vector<std::string> a = runArgs();
     a.insert(a.end(), {"--frames", rangeText(t.first, t.last), "--warmup", std::to_string(t.warmup),
                        "--resume"});
     return a;
@@ -169,6 +174,93 @@ std::string commandList(const FarmPlan& p) {
     std::string s;
     for (const auto& t : p.tasks) s += p.taskCommand(t) + "\n";
     return s;
+}
+
+namespace {
+
+/// The task's script (bash, an embedded file of the template; $1 is the chunk "A-B"). The
+/// scheduler picks the chunk, so the script derives what makePlan gives that chunk: its warm-up
+/// (W frames, never before the shot's first frame or the last cut at or before A) and its log.
+std::string openjdTaskScript(const FarmPlan& p) {
+    const std::string first = std::to_string(p.first);
+    std::string cuts;
+    if (!p.cuts.empty())
+        for (auto c : parseFrameRange(p.cuts)) cuts += " " + std::to_string(c);
+    std::string run;
+    for (const auto& w : p.runArgs()) run += shellQuote(w) + " ";
+    run += "--frames \"$a-$b\" --warmup \"$warmup\" --resume --progress openjd &\n";
+
+    std::string s = "#!/bin/bash\n";
+    s += "# kestrel farm plan --format openjd: one chunk of " + p.graph + ".\n";
+    s += "set -euo pipefail\n";
+    s += "chunk=${1:?usage: task.sh A-B}\n";
+    s += "if [[ ! $chunk =~ ^([0-9]+)-([0-9]+)$ ]]; then\n"
+         "  echo \"kestrel farm: chunk '$chunk' is not A-B (rangeConstraint CONTIGUOUS)\" >&2\n"
+         "  exit 2\n"
+         "fi\n"
+         "a=${BASH_REMATCH[1]} b=${BASH_REMATCH[2]}\n";
+    // As makePlan: history starts at the shot's first frame or the last cut at or before A.
+    s += "start=" + first + "\n";
+    s += "for cut in" + cuts + "; do if (( cut <= a && cut > start )); then start=$cut; fi; done\n";
+    s += "warmup=$(( a - start ))\n";
+    s += "if (( warmup > " + std::to_string(p.warmup) +
+         " )); then warmup=" + std::to_string(p.warmup) + "; fi\n";
+    // With the default chunking a chunk is plan task (A - first) / chunk: the log `farm check`
+    // reads for it.
+    s += "log=$(printf '%s/task-%04d.log' " + shellQuote(p.logDir) + " $(( (a - " + first + ") / " +
+         std::to_string(p.chunk) + " )))\n";
+    s += "mkdir -p " + shellQuote(p.logDir) + "\n";
+    // Both to the log and to the worker, which reads the openjd_progress lines.
+    s += "exec > >(tee -a \"$log\") 2>&1\n"
+         "tee_pid=$!\n";
+    // kestrel in the background: a cancel's SIGTERM to this shell is passed on (kestrel finishes
+    // the frame in progress), and the task ends only once tee has written everything.
+    s += run;
+    s += "pid=$!\n"
+         "trap 'kill -TERM \"$pid\" 2>/dev/null' TERM INT\n"
+         "while :; do\n"
+         "  wait \"$pid\" && status=0 || status=$?\n"
+         "  kill -0 \"$pid\" 2>/dev/null || break  # wait was cut short by the trap\n"
+         "done\n"
+         "exec >&- 2>&-\n"
+         "wait \"$tee_pid\" || true\n"
+         "exit \"$status\"\n";
+    return s;
+}
+
+}  // namespace
+
+nlohmann::json openjdTemplate(const FarmPlan& p) {
+    const std::string script = openjdTaskScript(p);
+    // OpenJD reads {{...}} in the script and its arguments as format strings.
+    if (script.find("{{") != std::string::npos)
+        throw Error(
+            "--format openjd: a path or option contains '{{', which OpenJD reads as a "
+            "format string; rename it");
+    const std::string name =
+        "kestrel " + fs::path(p.graph).stem().string() + " " + rangeText(p.first, p.last);
+    nlohmann::json frame = {
+        {"name", "Frame"},
+        {"type", "CHUNK[INT]"},
+        {"range", rangeText(p.first, p.last)},
+        // No targetRuntimeSeconds: every chunk pays the warm-up, so the plan's chunk size is
+        // kept rather than shrunk by the scheduler.
+        {"chunks", {{"defaultTaskCount", p.chunk}, {"rangeConstraint", "CONTIGUOUS"}}}};
+    nlohmann::json onRun = {
+        {"command", "bash"},
+        {"args", {"{{Task.File.Run}}", "{{Task.Param.Frame}}"}},
+        // kestrel finishes the frame in progress on SIGTERM; NOTIFY_THEN_TERMINATE sends it.
+        {"cancelation", {{"mode", "NOTIFY_THEN_TERMINATE"}}}};
+    nlohmann::json step = {
+        {"name", "Denoise"},
+        {"parameterSpace", {{"taskParameterDefinitions", {frame}}}},
+        {"script",
+         {{"actions", {{"onRun", onRun}}},
+          {"embeddedFiles", {{{"name", "Run"}, {"type", "TEXT"}, {"data", script}}}}}}};
+    return {{"specificationVersion", "jobtemplate-2023-09"},
+            {"extensions", {"TASK_CHUNKING"}},
+            {"name", name.substr(0, 128)},  // OpenJD's limit on a job name
+            {"steps", {step}}};
 }
 
 nlohmann::json planToJson(const FarmPlan& p) {

@@ -2,7 +2,8 @@
 // `kestrel farm plan`: a contiguous frame range cut into chunks, each chunk one `kestrel run`
 // task with its own --frames, --warmup (history warmed up on the frames before the chunk) and
 // --resume (a re-queued task finishes what a failed one started), logging to its own file.
-// Written as a Slurm job-array script, a plain command list or JSON (docs/farm.md).
+// Written as a Slurm job-array script, an OpenJD job template, a plain command list or JSON
+// (docs/farm.md).
 #include <cstdint>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -44,6 +45,8 @@ struct FarmPlan {
     std::string logDir;
     std::vector<FarmTask> tasks;
 
+    /// `kestrel run` and the options every task shares (argv, without --frames, --warmup).
+    std::vector<std::string> runArgs() const;
     /// The task's `kestrel run` command line (argv, without the log redirection).
     std::vector<std::string> taskArgs(const FarmTask& t) const;
     /// The same as one shell line appending stdout and stderr to the task's log.
@@ -57,6 +60,12 @@ FarmPlan makePlan(const FarmOptions& options);
 
 /// A bash script for `sbatch`: `#SBATCH --array=0-K`, SLURM_ARRAY_TASK_ID picks the task.
 std::string slurmScript(const FarmPlan& plan);
+/// An OpenJD job template (specificationVersion jobtemplate-2023-09, JSON form) for AWS Deadline
+/// Cloud or any OpenJD runtime: one step whose CHUNK[INT] task parameter is the shot's range in
+/// contiguous chunks of plan.chunk frames. Each task computes the same warm-up as the plan's
+/// task and runs `kestrel run --resume --progress openjd`. Throws Error when a path would be
+/// read as an OpenJD format string.
+nlohmann::json openjdTemplate(const FarmPlan& plan);
 /// One shell line per task (for GNU parallel, a shell loop, OpenCue, Deadline).
 std::string commandList(const FarmPlan& plan);
 nlohmann::json planToJson(const FarmPlan& plan);

@@ -3,6 +3,7 @@
 
 #include "Commands.h"
 #include "Common.h"
+#include "GraphDot.h"
 #include "OutputSafety.h"
 #include "kestrel/Log.h"
 #include "kestrel/SequenceRunner.h"
@@ -14,9 +15,15 @@ void addGraphCommand(CLI::App& app, Action& action) {
         "graph", "Compile a graph for a scene and show the result (Graphviz DOT)");
     auto o = std::make_shared<GraphOptions>();
     auto dot = std::make_shared<bool>(false);
+    auto all = std::make_shared<bool>(false);
     auto outFile = std::make_shared<std::string>();
     cmd->add_option("GRAPH", o->graph, "Graph JSON file (default: the shipped svgf.json)");
-    cmd->add_flag("--dot", *dot, "Write Graphviz DOT of the compiled graph");
+    cmd->add_flag("--dot", *dot,
+                  "Write Graphviz DOT of the compiled graph: one box per group instance, the "
+                  "passes this scene leaves out hidden");
+    cmd->add_flag("--all", *all,
+                  "With --dot: every pass, group instances as clusters, left-out passes dashed "
+                  "with their reasons");
     cmd->add_option("-o,--out", *outFile, "Write to this file instead of standard output");
     cmd->add_option("--input", o->inputs, "Input pattern (PATTERN or name=PATTERN)")
         ->expected(1)
@@ -24,8 +31,8 @@ void addGraphCommand(CLI::App& app, Action& action) {
     cmd->add_option("--set", o->sets, "Override a parameter: pass.param=value")
         ->expected(1)
         ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
-    cmd->callback([&action, o, dot, outFile] {
-        action = [o, dot, outFile]() -> int {
+    cmd->callback([&action, o, dot, all, outFile] {
+        action = [o, dot, all, outFile]() -> int {
             std::unique_ptr<Plugins> plugins;
             std::unique_ptr<CompiledGraph> compiled;
             GraphDesc g;
@@ -49,7 +56,7 @@ void addGraphCommand(CLI::App& app, Action& action) {
             }
             std::string text;
             if (*dot) {
-                text = compiled->toDot();
+                text = *all ? compiled->toDot() : overviewDot(*compiled);
             } else {
                 for (const auto& n : compiled->executionOrder()) text += n + "\n";
                 for (const auto& p : compiled->report().pruned)

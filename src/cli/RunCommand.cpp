@@ -50,7 +50,8 @@ struct RunOptions {
     std::string reference, refLayer;  // print each frame's error against these frames
     std::vector<std::string> dumps;   // --dump patterns
     std::string dumpDir;
-    std::string cuts;  // --cuts: frames where history is reset (camera cuts)
+    std::string cuts;               // --cuts: frames where history is reset (camera cuts)
+    std::string progress = "auto";  // --progress: auto (bar or log lines), openjd
 };
 
 void logReport(const CompiledGraph& g) {
@@ -107,7 +108,7 @@ private:
 /// reference error, per-pass times with -v, skipped frames.
 class RunLog : public SequenceObserver {
 public:
-    explicit RunLog(ReferenceCheck& reference) : reference_(reference) {}
+    RunLog(ReferenceCheck& reference, bool openjd) : reference_(reference), openjd_(openjd) {}
     Progress& progress() { return progress_; }
 
     void starting(const SequencePlan& plan) override {
@@ -122,6 +123,7 @@ public:
             spdlog::info("--resume: {} frames already written; warming history up on {} frames",
                          plan.alreadyWritten, plan.replayed);
         progress_ = Progress(plan.schedule.size());
+        total_ = plan.schedule.size();
     }
 
     void frameDone(const FrameRecord& f, size_t index, const Executor& exec) override {
@@ -145,6 +147,7 @@ public:
             spdlog::debug("frame {}: {:.2f} ms{}", f.frame, f.ms, detail);
         }
         progress_.update(index + 1, f.frame, f.ms, f.written);
+        if (openjd_) openjdProgress(index + 1);
     }
 
     void frameSkipped(const SkippedFrame& s) override {
@@ -153,7 +156,18 @@ public:
     }
 
 private:
+    /// OpenJD's progress message: a worker agent reads `openjd_progress: P` (percent) lines
+    /// from the task's standard output and shows them in the scheduler. Warm-up frames count:
+    /// they take as long as written ones.
+    void openjdProgress(size_t done) const {
+        std::printf("openjd_progress: %.1f\n",
+                    total_ ? 100.0 * double(done) / double(total_) : 100.0);
+        std::fflush(stdout);
+    }
+
     ReferenceCheck& reference_;
+    bool openjd_;
+    size_t total_ = 0;
     Progress progress_{0};
 };
 
@@ -288,7 +302,7 @@ int runGraph(const RunOptions& o) {
     gInterrupted = 0;
     auto oldInt = std::signal(SIGINT, onInterrupt);
     auto oldTerm = std::signal(SIGTERM, onInterrupt);
-    RunLog log(reference);
+    RunLog log(reference, o.progress == "openjd");
     const SequenceResult result = runner.run(exec, &log);
     std::signal(SIGINT, oldInt);
     std::signal(SIGTERM, oldTerm);
@@ -363,6 +377,10 @@ void addRunCommand(CLI::App& app, Action& action) {
                     "the first output)");
     cmd->add_option("--out-dir", o->graph.outDir,
                     "Where default outputs and the built-in scene go");
+    cmd->add_option("--progress", o->progress,
+                    "auto (a bar on a terminal, else a log line per frame) or openjd (also "
+                    "`openjd_progress: P` lines on stdout for an OpenJD worker)")
+        ->check(CLI::IsMember({"auto", "openjd"}));
     cmd->add_flag("-v,--verbose", gVerbose, "Per-frame and per-pass timings, details of errors");
     cmd->callback([&action, o] { action = [o] { return runGraph(*o); }; });
 }

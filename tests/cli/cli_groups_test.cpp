@@ -1,7 +1,10 @@
 // Groups on the command line (docs/graphs.md): --set on instance paths, group parameters and
 // patterns; errors inside an instance as one line naming the instance path and the definition;
 // DOT clusters; `kestrel passes` listing the groups of a graph folder.
+#include <algorithm>
 #include <nlohmann/json.hpp>
+#include <regex>
+#include <set>
 
 #include "CliRunner.h"
 
@@ -55,8 +58,8 @@ TEST_F(CliGroups, SetTakesInstancePathsGroupParametersAndPatterns) {
     EXPECT_NE(none.errorLines()[0].find("no pass matches '*.atrous9'"), std::string::npos);
 }
 
-TEST_F(CliGroups, DotDrawsEachInstanceAsACluster) {
-    const CliResult r = graph({"--dot"});
+TEST_F(CliGroups, DotAllDrawsEachInstanceAsACluster) {
+    const CliResult r = graph({"--dot", "--all"});
     ASSERT_EQ(r.code, 0) << r.all();
     for (const char* inst : {"diffuse", "specular", "single"}) {
         const auto at = r.out.find("subgraph \"cluster_" + std::string(inst) + "\" {");
@@ -66,6 +69,61 @@ TEST_F(CliGroups, DotDrawsEachInstanceAsACluster) {
         EXPECT_LT(pass, r.out.find("\n  }\n", at)) << inst;
     }
     EXPECT_EQ(r.out.find("subgraph \"cluster_taa"), std::string::npos);  // not an instance
+}
+
+namespace {
+/// The node names a DOT text declares ("NAME" [label=...) and its edges' endpoints.
+std::set<std::string> dotNodes(const std::string& dot) {
+    std::set<std::string> nodes;
+    const std::regex decl("\n *\"([^\"]+)\" \\[label=");
+    for (std::sregex_iterator it(dot.begin(), dot.end(), decl), end; it != end; ++it)
+        nodes.insert((*it)[1].str());
+    return nodes;
+}
+std::vector<std::pair<std::string, std::string>> dotEdges(const std::string& dot) {
+    std::vector<std::pair<std::string, std::string>> edges;
+    const std::regex edge("\n *\"([^\"]+)\" -> \"([^\"]+)\"");
+    for (std::sregex_iterator it(dot.begin(), dot.end(), edge), end; it != end; ++it)
+        edges.push_back({(*it)[1].str(), (*it)[2].str()});
+    return edges;
+}
+}  // namespace
+
+// The default picture fits a screen: one box per group instance, the passes this scene leaves
+// out hidden (the room has no diffuse/specular split: those chains are left out); --all keeps
+// the full view.
+TEST_F(CliGroups, DotCollapsesInstancesAndHidesLeftOutPasses) {
+    const CliResult list = graph({});  // live passes in execution order, then the left-out ones
+    ASSERT_EQ(list.code, 0) << list.all();
+    std::set<std::string> expected;  // each live pass's box: its instance, else itself
+    std::istringstream lines(list.out);
+    for (std::string l; std::getline(lines, l) && l.find(' ') == std::string::npos;)
+        expected.insert(l.substr(0, l.find('.')));
+    ASSERT_TRUE(expected.count("single")) << list.out;
+
+    const CliResult r = graph({"--dot"});
+    ASSERT_EQ(r.code, 0) << r.all();
+    EXPECT_EQ(dotNodes(r.out), expected) << r.out;
+    EXPECT_FALSE(expected.count("diffuse") || expected.count("specular")) << list.out;
+    EXPECT_EQ(r.out.find("cluster"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("\"single\" [label=\"single\\n(group svgf-chain)"), std::string::npos)
+        << r.out;
+    const auto edges = dotEdges(r.out);
+    EXPECT_FALSE(edges.empty());
+    for (const auto& [from, to] : edges) {
+        EXPECT_TRUE(expected.count(from) && expected.count(to)) << from << " -> " << to;
+        EXPECT_NE(from, to);
+    }
+    // The output is reached: the looked-through Select and TAA chain stay connected.
+    EXPECT_TRUE(std::any_of(edges.begin(), edges.end(), [](const auto& e) {
+        return e.second == "output";
+    })) << r.out;
+
+    const CliResult all = graph({"--dot", "--all"});
+    ASSERT_EQ(all.code, 0) << all.all();
+    const auto allNodes = dotNodes(all.out);
+    EXPECT_TRUE(allNodes.count("diffuse.atrous0") && allNodes.count("single.atrous0"));
+    EXPECT_GT(allNodes.size(), 3 * expected.size());
 }
 
 TEST_F(CliGroups, PassesListsTheGroupsOfAGraphFolder) {

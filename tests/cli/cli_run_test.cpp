@@ -1,6 +1,9 @@
 // kestrel run, end to end on a tiny generated scene: missing input frames (fail or skip),
 // output folders checked before frame 1, --resume and --warmup.
+#include <OpenEXR/ImfOutputFile.h>
+
 #include <cmath>
+#include <map>
 
 #include "CliRunner.h"
 #include "ExrCheck.h"
@@ -232,4 +235,83 @@ TEST_F(CliRun, DumpWritesMatchingResourcesAndChangesNothing) {
     EXPECT_EQ(typo.code, 2) << typo.all();
     EXPECT_NE(typo.err.find("--dump '*atrous9.color' matches no resource"), std::string::npos)
         << typo.err;
+}
+
+namespace {
+/// Rewrites `file` with an A channel (of R's type): 0.25 on the left half, 1 on the right.
+void addAlpha(const fs::path& file) {
+    Imf::Header header;
+    std::map<std::string, std::vector<float>> data;
+    int W = 0, H = 0;
+    {
+        Imf::InputFile in(file.c_str());
+        header = in.header();
+        const Imath::Box2i dw = header.dataWindow();
+        W = dw.max.x - dw.min.x + 1;
+        H = dw.max.y - dw.min.y + 1;
+        Imf::FrameBuffer fb;
+        for (auto it = header.channels().begin(); it != header.channels().end(); ++it) {
+            auto& v = data[it.name()];
+            v.resize(size_t(W) * size_t(H));
+            fb.insert(it.name(), Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(v.data()),
+                                            sizeof(float), sizeof(float) * size_t(W)));
+        }
+        in.setFrameBuffer(fb);
+        in.readPixels(dw.min.y, dw.max.y);
+    }
+    header.channels().insert("A", Imf::Channel(header.channels().findChannel("R")->type));
+    auto& a = data["A"];
+    a.resize(size_t(W) * size_t(H));
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) a[size_t(y) * size_t(W) + size_t(x)] = x < W / 2 ? 0.25f : 1.f;
+    Imf::FrameBuffer fb;
+    for (auto& [name, v] : data)
+        fb.insert(name, Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(v.data()), sizeof(float),
+                                   sizeof(float) * size_t(W)));
+    Imf::OutputFile out(file.c_str(), header);
+    out.setFrameBuffer(fb);
+    out.writePixels(H);
+}
+
+/// Channel `name` of `file` as floats, empty when the file has no such channel.
+std::vector<float> channelOf(const fs::path& file, const std::string& name) {
+    Imf::InputFile in(file.c_str());
+    if (!in.header().channels().findChannel(name)) return {};
+    const Imath::Box2i dw = in.header().dataWindow();
+    const size_t W = size_t(dw.max.x - dw.min.x + 1), H = size_t(dw.max.y - dw.min.y + 1);
+    std::vector<float> v(W * H);
+    Imf::FrameBuffer fb;
+    fb.insert(name, Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(v.data()), sizeof(float),
+                               sizeof(float) * W));
+    in.setFrameBuffer(fb);
+    in.readPixels(dw.min.y, dw.max.y);
+    return v;
+}
+}  // namespace
+
+// The shipped graph keeps the input's alpha: the output's A is the input's, unfiltered; an input
+// without alpha gives an output without an A channel.
+TEST_F(CliRun, ShippedGraphKeepsTheInputsAlpha) {
+    const fs::path svgf = fs::path(KESTREL_SOURCE_DIR) / "graphs" / "svgf.json";
+    auto runSvgf = [&](const std::string& out) {
+        return box.run({"run", svgf.string(), "--input", "scene/noisy/frame_####.exr", "--output",
+                        out + "/frame_####.exr", "--frames", "1-2", "--threads", "2"});
+    };
+    CliResult plain = runSvgf("plain");
+    ASSERT_EQ(plain.code, 0) << plain.all();
+    EXPECT_TRUE(channelOf(box.work() / "plain" / "frame_0002.exr", "A").empty());
+
+    for (int f = 1; f <= 2; ++f)
+        addAlpha(box.work() / "scene" / "noisy" / frameName("frame_", f, ".exr"));
+    CliResult r = runSvgf("alpha");
+    ASSERT_EQ(r.code, 0) << r.all();
+    const auto in = channelOf(box.work() / "scene" / "noisy" / "frame_0002.exr", "A");
+    const auto out = channelOf(box.work() / "alpha" / "frame_0002.exr", "A");
+    ASSERT_EQ(out.size(), in.size());
+    EXPECT_EQ(out, in);
+    EXPECT_EQ(out.front(), 0.25f);
+    EXPECT_EQ(out.back(), 1.f);
+    // The colour is the same as without alpha: A is carried beside it, not mixed in.
+    EXPECT_EQ(channelOf(box.work() / "alpha" / "frame_0002.exr", "G"),
+              channelOf(box.work() / "plain" / "frame_0002.exr", "G"));
 }

@@ -181,7 +181,7 @@ TEST(CliUsage, GraphDotShowsHistoryEdgesDashed) {
     Sandbox box;
     if (!makeScene(box, box.work() / "scene", 16, 12, 1))
         GTEST_SKIP() << "no scenegen in this build";
-    auto r = box.run({"graph", (graphDir() / "taa.json").string(), "--dot", "--input",
+    auto r = box.run({"graph", (graphDir() / "taa.json").string(), "--dot", "--all", "--input",
                       "scene/noisy/frame_####.exr"});
     ASSERT_EQ(r.code, 0) << r.all();
     EXPECT_NE(r.out.find("digraph"), std::string::npos) << r.out;
@@ -193,6 +193,13 @@ TEST(CliUsage, GraphDotShowsHistoryEdgesDashed) {
             dashedHistory = true;
     EXPECT_TRUE(dashedHistory) << r.out;
     expectClean(r);
+    // The default (collapsed) view draws the same feedback dashed.
+    r = box.run({"graph", (graphDir() / "taa.json").string(), "--dot", "--input",
+                 "scene/noisy/frame_####.exr"});
+    ASSERT_EQ(r.code, 0) << r.all();
+    EXPECT_NE(r.out.find("\"taa\" -> \"reproject\" [label=\"taa.color\", style=dashed"),
+              std::string::npos)
+        << r.out;
 }
 
 // --light-change F --light-scale K changes a street scene's lights from frame F on (the frames

@@ -4,6 +4,8 @@
 // camera cut inside the warm-up. The Slurm run itself is farm_slurm_test.sh.
 #include <nlohmann/json.hpp>
 #include <regex>
+#include <set>
+#include <thread>
 
 #include "CliRunner.h"
 
@@ -234,4 +236,181 @@ TEST_F(Farm, TaskCommandsSurviveTheShellWithSpacesAndQuotesInPaths) {
     CliResult r = box.run(planArgs("check", out, "1-4", 2));
     EXPECT_EQ(r.code, 0) << r.all();
     EXPECT_NE(r.out.find("4 complete, 0 missing, 0 broken"), std::string::npos) << r.out;
+}
+
+namespace {
+
+/// Every {{...}} format string of an OpenJD template's strings, recursively.
+void formatStrings(const nlohmann::json& j, std::set<std::string>& found) {
+    if (j.is_string()) {
+        const std::string s = j.get<std::string>();
+        const std::regex ref("\\{\\{\\s*([^}]*?)\\s*\\}\\}");
+        for (std::sregex_iterator it(s.begin(), s.end(), ref), end; it != end; ++it)
+            found.insert((*it)[1].str());
+    } else if (j.is_structured()) {
+        for (const auto& v : j) formatStrings(v, found);
+    }
+}
+
+}  // namespace
+
+TEST_F(Farm, OpenjdTemplateRunsEachChunkAsThePlansTaskWithProgressLines) {
+    if (!makeZooScene("room", 9)) GTEST_SKIP() << "no scenegen in this build";
+    // Chunks 1-3, 4-6, 7-9; warm-ups 0, 3 and 2 (the cut at 5 caps the last one).
+    auto args = planArgs("plan", "openjd", "1-9", 3);
+    args.insert(args.end(), {"--warmup", "3", "--cuts", "5"});
+    auto tmpl = args;
+    tmpl.insert(tmpl.end(), {"--format", "openjd", "--out", "../template.json"});
+    CliResult r = box.run(tmpl);
+    ASSERT_EQ(r.code, 0) << r.all();
+    const auto j = nlohmann::json::parse(readText(box.root() / "template.json"));
+
+    // The keys OpenJD requires, and the chunked parameter space.
+    EXPECT_EQ(j.at("specificationVersion"), "jobtemplate-2023-09");
+    EXPECT_EQ(j.at("extensions"), nlohmann::json::array({"TASK_CHUNKING"}));
+    ASSERT_TRUE(j.at("name").is_string());
+    EXPECT_FALSE(j["name"].get<std::string>().empty());
+    EXPECT_LE(j["name"].get<std::string>().size(), 128u);
+    ASSERT_EQ(j.at("steps").size(), 1u);
+    const auto& step = j["steps"][0];
+    EXPECT_TRUE(step.at("name").is_string());
+    const auto& params = step.at("parameterSpace").at("taskParameterDefinitions");
+    ASSERT_EQ(params.size(), 1u);
+    EXPECT_EQ(params[0].at("name"), "Frame");
+    EXPECT_EQ(params[0].at("type"), "CHUNK[INT]");
+    EXPECT_EQ(params[0].at("range"), "1-9");
+    EXPECT_EQ(params[0].at("chunks").at("defaultTaskCount"), 3);
+    EXPECT_EQ(params[0].at("chunks").at("rangeConstraint"), "CONTIGUOUS");
+    const auto& onRun = step.at("script").at("actions").at("onRun");
+    EXPECT_EQ(onRun.at("command"), "bash");
+    EXPECT_EQ(onRun.at("args"),
+              nlohmann::json::array({"{{Task.File.Run}}", "{{Task.Param.Frame}}"}));
+    const auto& files = step["script"].at("embeddedFiles");
+    ASSERT_EQ(files.size(), 1u);
+    EXPECT_EQ(files[0].at("name"), "Run");
+    EXPECT_EQ(files[0].at("type"), "TEXT");
+    // Only the step's own file and parameter are referenced: nothing OpenJD cannot resolve.
+    std::set<std::string> refs;
+    formatStrings(j, refs);
+    EXPECT_EQ(refs, (std::set<std::string>{"Task.File.Run", "Task.Param.Frame"}));
+
+    // What a worker does with each chunk (CONTIGUOUS chunks come as "A-B"): write the embedded
+    // file and run the command on it.
+    const fs::path script = box.root() / "task.sh";
+    writeText(script, files[0]["data"].get<std::string>());
+    auto runChunk = [&](const std::string& chunk, std::string& out) {
+        const fs::path o = box.root() / "chunk.out";
+        const std::string cmd = "cd " + quote(box.work().string()) +
+                                " && env KESTREL_PLUGIN_PATH= " + "bash " + quote(script.string()) +
+                                " " + quote(chunk) + " >" + quote(o.string()) + " 2>&1 </dev/null";
+        const int status = std::system(cmd.c_str());
+        out = readText(o);
+        return WEXITSTATUS(status);
+    };
+    const std::map<std::string, int> warmups{{"1-3", 0}, {"4-6", 3}, {"7-9", 2}};
+    for (const auto& [chunk, warmup] : warmups) {
+        std::string out;
+        ASSERT_EQ(runChunk(chunk, out), 0) << chunk << ":\n" << out;
+        // One progress line a frame run (warm-up included), ending at 100 %.
+        const std::regex progress("(^|\n)openjd_progress: ([0-9.]+)\n");
+        std::vector<double> values;
+        for (std::sregex_iterator it(out.begin(), out.end(), progress), end; it != end; ++it)
+            values.push_back(std::stod((*it)[2].str()));
+        ASSERT_EQ(values.size(), size_t(3 + warmup)) << chunk << ":\n" << out;
+        EXPECT_DOUBLE_EQ(values.back(), 100.0) << out;
+        EXPECT_TRUE(std::is_sorted(values.begin(), values.end())) << out;
+        // The plan's warm-up for this chunk: the run logs each warm-up frame as such.
+        const std::regex warm("frame [0-9]+ \\([0-9]+/[0-9]+\\) warm-up:");
+        EXPECT_EQ(std::distance(std::sregex_iterator(out.begin(), out.end(), warm),
+                                std::sregex_iterator()),
+                  warmup)
+            << chunk << ":\n"
+            << out;
+    }
+    std::string bad;
+    EXPECT_EQ(runChunk("1,3", bad), 2) << bad;
+    EXPECT_NE(bad.find("not A-B"), std::string::npos) << bad;
+
+    // `farm check` finds every frame and each chunk's log under the plan's task number; the
+    // frames are those of the same plan run as a command list.
+    auto check = planArgs("check", "openjd", "1-9", 3);
+    check.insert(check.end(), {"--warmup", "3", "--cuts", "5"});
+    CliResult ok = box.run(check);
+    EXPECT_EQ(ok.code, 0) << ok.all();
+    EXPECT_TRUE(std::regex_search(
+        ok.out, std::regex("task 2 +frames 7-9 +complete +wall [0-9.]+ s, 3 frames written")))
+        << ok.out;
+    auto commands = planArgs("plan", "commands", "1-9", 3);
+    commands.insert(commands.end(), {"--warmup", "3", "--cuts", "5"});
+    ASSERT_EQ(planAndRun(commands).code, 0);
+    const auto e = relMse("openjd", "commands", "1-9");
+    ASSERT_EQ(e.size(), 9u);
+    for (const auto& [frame, err] : e) EXPECT_EQ(err, 0.0) << "frame " << frame;
+}
+
+TEST_F(Farm, OpenjdRefusesAPathOpenjdWouldReadAsAFormatString) {
+    auto args = planArgs("plan", "shot{{1}}", "1-4", 2);
+    args.insert(args.end(), {"--format", "openjd"});
+    CliResult r = box.run(args);
+    EXPECT_EQ(r.code, 2) << r.all();
+    ASSERT_EQ(r.errorLines().size(), 1u) << r.all();
+    EXPECT_NE(r.errorLines()[0].find("'{{', which OpenJD reads as a format string"),
+              std::string::npos)
+        << r.errorLines()[0];
+    EXPECT_TRUE(r.out.empty()) << r.out;
+}
+
+// Cancelling an OpenJD task (NOTIFY_THEN_TERMINATE) sends SIGTERM to the task's process: the
+// embedded script passes it on, kestrel finishes the frame in progress, and the task exits 143
+// with every written frame complete and the log saying so.
+TEST_F(Farm, OpenjdTaskPassesSigtermOnToKestrel) {
+    // One 64x48 frame linked as frames 1..200 through slow.json (three A-Trous passes, one
+    // thread): long enough to be cancelled mid-way.
+    if (!makeZooScene("room", 1)) GTEST_SKIP() << "no scenegen in this build";
+    const fs::path noisy = box.work() / "scene" / "noisy";
+    for (int f = 2; f <= 200; ++f) {
+        char name[32];
+        std::snprintf(name, sizeof name, "frame_%04d.exr", f);
+        fs::create_symlink("frame_0001.exr", noisy / name);
+    }
+    CliResult plan = box.run(
+        {"farm", "plan", (fs::path(KESTREL_SOURCE_DIR) / "tests/cli/graphs/slow.json").string(),
+         "--input", "scene/noisy/frame_####.exr", "--output", "out/frame_####.exr", "--frames",
+         "1-200", "--chunk", "200", "--threads", "1", "--format", "openjd", "--out", "../t.json"});
+    ASSERT_EQ(plan.code, 0) << plan.all();
+    const auto j = nlohmann::json::parse(readText(box.root() / "t.json"));
+    const fs::path script = box.root() / "task.sh", log = box.root() / "task.out";
+    writeText(script, j["steps"][0]["script"]["embeddedFiles"][0]["data"].get<std::string>());
+
+    const pid_t pid = ::fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {  // the worker's process for the task: bash SCRIPT CHUNK
+        if (::chdir(box.work().c_str()) != 0) ::_exit(127);
+        std::FILE* f = std::freopen(log.c_str(), "w", stdout);
+        if (!f || ::dup2(1, 2) < 0) ::_exit(127);
+        ::setenv("KESTREL_PLUGIN_PATH", "", 1);
+        ::execlp("bash", "bash", script.c_str(), "1-200", static_cast<char*>(nullptr));
+        ::_exit(127);
+    }
+    const fs::path out = box.work() / "out";
+    int status = 0;
+    bool exited = false;
+    for (int i = 0; i < 30000 && countFiles(out, ".exr") == 0; ++i) {
+        if (::waitpid(pid, &status, WNOHANG) == pid) {
+            exited = true;
+            break;
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    ASSERT_FALSE(exited) << "the task ended before writing a frame:\n" << readText(log);
+    ::kill(pid, SIGTERM);  // the shell only, as a worker signals the process it started
+    ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+    const std::string text = readText(log);
+    ASSERT_TRUE(WIFEXITED(status)) << "killed by signal " << WTERMSIG(status) << "\n" << text;
+    EXPECT_EQ(WEXITSTATUS(status), 143) << text;
+    EXPECT_NE(text.find("interrupted (SIGTERM)"), std::string::npos) << text;
+    EXPECT_NE(text.find("run finished: exit 143"), std::string::npos) << text;
+    const int written = countFiles(out, ".exr");
+    EXPECT_GE(written, 1);
+    EXPECT_LT(written, 200) << "the cancel did not reach kestrel";
 }

@@ -442,3 +442,68 @@ TEST(ExrLoaderRobustness, BareZChannelIsDepth) {
     EXPECT_EQ(h.out("depth").at(0, 1, 0), 2.f);
     EXPECT_EQ(h.out("depth").at(0, 1, 1), 4.f);
 }
+
+namespace {
+/// A two-pixel Blender multilayer frame with view layers Day (colour 1) and Night (colour 5).
+fs::path writeTwoLayers(const TempDir& tmp) {
+    Channels ch;
+    for (const auto& [layer, v] : {std::pair<std::string, float>{"Day", 1.f}, {"Night", 5.f}})
+        for (const char* c : {"R", "G", "B"}) ch[layer + ".Combined." + c].assign(2, v);
+    writeExr(tmp.path / "r.0001.exr", box(0, 0, 1, 0), ch);
+    return tmp.path / "r.####.exr";
+}
+}  // namespace
+
+// A render with several view layers: no silent pick of one; `layer` chooses, a wrong name lists
+// them, and a layer choice on a file without view layers is refused rather than ignored.
+TEST(ExrLoaderRobustness, SeveralViewLayersAreRefusedUnlessOneIsChosen) {
+    TempDir tmp("layers");
+    const fs::path pattern = writeTwoLayers(tmp);
+    auto resolveError = [&](const std::map<std::string, kestrel::ParamValue>& params) {
+        auto h = PassHarness::make<ExrLoader>({2, 1}, params);
+        RecordingResolve rc(1);
+        try {
+            h.pass().resolve(rc);
+        } catch (const kestrel::Error& e) {
+            return std::string(e.what());
+        }
+        return std::string();
+    };
+    const std::string none = resolveError({{"path", pattern.string()}});
+    EXPECT_NE(none.find("has 2 view layers (Day, Night): choose one with the loader's layer "
+                        "parameter (--set input.layer=Day)"),
+              std::string::npos)
+        << none;
+    EXPECT_EQ(none.find('\n'), std::string::npos) << "one line: " << none;
+    const std::string wrong = resolveError({{"path", pattern.string()}, {"layer", "Dusk"}});
+    EXPECT_NE(wrong.find("layer 'Dusk': "), std::string::npos) << wrong;
+    EXPECT_NE(wrong.find("has view layers Day, Night"), std::string::npos) << wrong;
+
+    auto night =
+        PassHarness::make<ExrLoader>({2, 1}, {{"path", pattern.string()}, {"layer", "Night"}});
+    night.useOutputs({"color"});
+    night.ctx.frameNumber = 1;
+    night.run();
+    EXPECT_EQ(night.out("color").at(0, 0, 0), 5.f);
+    EXPECT_EQ(night.out("color").at(2, 1, 0), 5.f);
+
+    writeExr(tmp.path / "c.0001.exr", box(0, 0, 1, 1), rgb(2, 2));
+    const std::string canonical =
+        resolveError({{"path", (tmp.path / "c.####.exr").string()}, {"layer", "Night"}});
+    EXPECT_NE(canonical.find("is not a Blender multilayer EXR"), std::string::npos) << canonical;
+}
+
+// Cycles' Combined is RGBA: its A (the coverage, with Film > Transparent) is the alpha output.
+TEST(ExrLoaderRobustness, BlenderCombinedAlphaIsTheAlphaOutput) {
+    TempDir tmp("alpha");
+    Channels ch;
+    for (const char* c : {"R", "G", "B"}) ch[std::string("ViewLayer.Combined.") + c].assign(2, 1.f);
+    ch["ViewLayer.Combined.A"] = {0.f, 0.5f};
+    writeExr(tmp.path / "r.0001.exr", box(0, 0, 1, 0), ch);
+    auto h = PassHarness::make<ExrLoader>({2, 1}, {{"path", (tmp.path / "r.####.exr").string()}});
+    h.useOutputs({"color", "alpha"});
+    h.ctx.frameNumber = 1;
+    h.run();
+    EXPECT_EQ(h.out("alpha").at(0, 0, 0), 0.f);
+    EXPECT_EQ(h.out("alpha").at(0, 1, 0), 0.5f);
+}

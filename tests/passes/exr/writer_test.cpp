@@ -1,6 +1,7 @@
 // ExrWriter: atomic writes, half-range clamping, provenance, previews, run-start checks.
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfInputFile.h>
+#include <OpenEXR/ImfStandardAttributes.h>
 #include <OpenEXR/ImfStringAttribute.h>
 #include <gtest/gtest.h>
 
@@ -184,4 +185,33 @@ TEST(ExrWriter, IdsAsFloatAndNothingWrittenDuringWarmup) {
     auto id = readChannel(tmp.path / "out.0002.exr", "id");
     EXPECT_EQ(id[1], 70000.f);
     EXPECT_EQ(id[6], -1.f);
+}
+
+// The colour output states its colour space (OpenEXR's chromaticities: Rec.709 primaries, D65
+// white) with every compression path (ZIP is written by kestrel's own encoder); ids have none.
+TEST(ExrWriter, ColourOutputCarriesRec709Chromaticities) {
+    for (const char* compression : {"zip", "piz"}) {
+        TempDir tmp("wchroma");
+        Image img(4, 2, Format::Float3);
+        img.fill(0.25f);
+        auto h = writer(tmp.path, {{"compression", std::string(compression)}});
+        h.bind("color", img);
+        h.ctx.frameNumber = 1;
+        h.run();
+        Imf::InputFile in((tmp.path / "out.0001.exr").c_str());
+        ASSERT_TRUE(Imf::hasChromaticities(in.header())) << compression;
+        const Imf::Chromaticities& c = Imf::chromaticities(in.header());
+        EXPECT_EQ(c.red, Imath::V2f(0.64f, 0.33f)) << compression;
+        EXPECT_EQ(c.green, Imath::V2f(0.30f, 0.60f)) << compression;
+        EXPECT_EQ(c.blue, Imath::V2f(0.15f, 0.06f)) << compression;
+        EXPECT_EQ(c.white, Imath::V2f(0.3127f, 0.3290f)) << compression;
+    }
+    TempDir tmp("wchromaid");
+    Image ids(4, 2, Format::Int32);
+    auto h = writer(tmp.path);
+    h.bind("color", ids);
+    h.ctx.frameNumber = 1;
+    h.run();
+    Imf::InputFile in((tmp.path / "out.0001.exr").c_str());
+    EXPECT_FALSE(Imf::hasChromaticities(in.header()));
 }
