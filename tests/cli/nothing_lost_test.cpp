@@ -375,4 +375,32 @@ TEST_F(CliNothingLost, GapInTheSequenceIsACutAndSaid) {
     }
 }
 
+// --- Mistakes refused before any work: farm plan, bench (item 13) ------------------------
+
+TEST_F(CliNothingLost, BenchMistakesExitTwoWithTheReason) {
+    const std::string copy = (graphDir() / "copy.json").string();
+    // The split graph needs the diffuse/specular split this canonical scene lacks.
+    const std::string split =
+        (fs::path(KESTREL_SOURCE_DIR) / "graphs" / "svgf-split.json").string();
+    struct Case {
+        std::vector<std::string> args;
+        std::string needle;
+    };
+    for (const auto& c : std::vector<Case>{
+             {{copy, "--input", "scene/noisy/frame_####.exr", "--frames", "1-x"}, "--frames"},
+             {{copy, "--input", "scene/noisy/frame_####.exr", "--tonemap", "nosuch"}, "--tonemap"},
+             {{copy, "--input", "nosuch/frame_####.exr"}, "nosuch/frame_####.exr"},
+             {{split, "--input", "scene/noisy/frame_####.exr"}, "input.specular is absent"}}) {
+        std::vector<std::string> args = {"bench"};
+        args.insert(args.end(), c.args.begin(), c.args.end());
+        args.insert(args.end(), {"--threads", "1"});
+        SCOPED_TRACE(args[1] + " " + c.args.back());
+        auto r = box.run(args);
+        EXPECT_EQ(r.code, 2) << r.all();
+        expectOneErrorLine(r, {c.needle});
+        EXPECT_EQ(r.err.find("no graph could run"), std::string::npos) << r.all();
+    }
+    expectInputsUntouched();
+}
+
 }  // namespace
