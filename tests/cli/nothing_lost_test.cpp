@@ -377,6 +377,33 @@ TEST_F(CliNothingLost, GapInTheSequenceIsACutAndSaid) {
 
 // --- Mistakes refused before any work: farm plan, bench (item 13) ------------------------
 
+TEST_F(CliNothingLost, FarmPlanOfAGraphThatCannotRunIsRefused) {
+    writeText(work() / "bad.json", copyGraphWith(R"({"exposure": 500})"));
+    struct Case {
+        std::string graph, output;
+        std::vector<std::string> needles;
+    };
+    const std::string copy = (graphDir() / "copy.json").string();
+    for (const auto& c : std::vector<Case>{
+             {"nosuch.json", "out/c.####.exr", {"nosuch.json"}},
+             {"bad.json", "out/c.####.exr", {"passes[1].params.exposure", "got 500"}},
+             {copy, "scene/noisy/frame_####.exr", {"is the input pattern", "--output"}}}) {
+        SCOPED_TRACE(c.graph + " " + c.output);
+        auto r = box.run({"farm", "plan", c.graph, "--input", "scene/noisy/frame_####.exr",
+                          "--output", c.output, "--frames", "1-3", "--chunk", "2", "--out",
+                          "plan.sh"});
+        EXPECT_EQ(r.code, 2) << r.all();
+        expectOneErrorLine(r, {c.needles.front()});
+        for (const auto& n : c.needles) EXPECT_NE(r.err.find(n), std::string::npos) << r.all();
+        EXPECT_FALSE(fs::exists(work() / "plan.sh"));
+    }
+    expectInputsUntouched();
+    // A plan made before the render exists still validates the graph alone.
+    auto ok = box.run({"farm", "plan", copy, "--input", "later/f_####.exr", "--output",
+                       "out/c.####.exr", "--frames", "1-3", "--chunk", "2", "--out", "plan.sh"});
+    EXPECT_EQ(ok.code, 0) << ok.all();
+}
+
 TEST_F(CliNothingLost, BenchMistakesExitTwoWithTheReason) {
     const std::string copy = (graphDir() / "copy.json").string();
     // The split graph needs the diffuse/specular split this canonical scene lacks.
