@@ -430,4 +430,39 @@ TEST_F(CliNothingLost, BenchMistakesExitTwoWithTheReason) {
     expectInputsUntouched();
 }
 
+// --- Output names checked before frame 1 (item 12) ---------------------------------------
+
+TEST_F(CliNothingLost, FrameNumberInAFolderNameIsRefusedBeforeFrameOne) {
+    for (const std::string out : {"out/####/c.exr", "out/shot_%04d/c.exr"}) {
+        SCOPED_TRACE(out);
+        auto r = box.run(runArgs((graphDir() / "copy.json").string(),
+                                 {"--frames", "1-2", "--output", out}));
+        EXPECT_EQ(r.code, 2) << r.all();
+        expectOneErrorLine(r, {"'" + out + "'", "frame number in a folder name", "e.g. out/c."});
+        EXPECT_FALSE(fs::exists(work() / "out")) << "written before the refusal";
+    }
+}
+
+TEST_F(CliNothingLost, OutputNameTooLongForItsTemporaryIsRefusedBeforeFrameOne) {
+    // NAME_MAX 255: ".NAME.tmp-PID" adds 6 bytes and a pid of up to 10 digits.
+    const long nameMax = ::pathconf(work().c_str(), _PC_NAME_MAX);
+    ASSERT_GT(nameMax, 20);
+    auto named = [&](long bytes) {  // out/AAA...A.####.exr whose file names are `bytes` long
+        return "out/" + std::string(size_t(bytes) - 9, 'a') + ".####.exr";
+    };
+    for (long bytes : {nameMax - 10, nameMax - 15}) {
+        SCOPED_TRACE(bytes);
+        auto r = box.run(runArgs((graphDir() / "copy.json").string(),
+                                 {"--frames", "1-2", "--output", named(bytes)}));
+        EXPECT_EQ(r.code, 2) << r.all();
+        expectOneErrorLine(r, {"(output.path, frame 1)", std::to_string(bytes) + " bytes",
+                               "NAME_MAX", "use at most " + std::to_string(nameMax - 16)});
+        EXPECT_FALSE(fs::exists(work() / "out"));
+    }
+    auto ok = box.run(runArgs((graphDir() / "copy.json").string(),
+                              {"--frames", "1-2", "--output", named(nameMax - 16)}));
+    EXPECT_EQ(ok.code, 0) << ok.all();
+    EXPECT_EQ(std::distance(fs::directory_iterator(work() / "out"), fs::directory_iterator()), 2);
+}
+
 }  // namespace
