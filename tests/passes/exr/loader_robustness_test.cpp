@@ -28,6 +28,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "ExrInput.h"
 #include "ExrLoader.h"
 #include "exr_test_util.h"
 #include "kestrel/testing/PassHarness.h"
@@ -405,6 +406,36 @@ TEST(ExrLoaderRobustness, FifoSidecarsAreRefusedWithoutReading) {
         EXPECT_NE(msg.find(fifo.string()), std::string::npos) << msg;
         EXPECT_NE(msg.find("not a regular file"), std::string::npos) << msg;
     }
+}
+
+// Issue 40 item 10: a data window the file cannot hold (OpenImageIO refuses one declaring over
+// 10,000 times the file's bytes and over 1 GiB) was allocated in full before the pixels were
+// found missing. 20000x6000 float RGB declares 1.44 GB in a file of about 50 KB.
+TEST(ExrLoaderRobustness, DataWindowAbsurdForTheFileSizeIsRefusedBeforeAllocation) {
+    TempDir tmp("declared");
+    Channels ch = rgb(64, 64);
+    uint32_t s = 1;  // noise: the file keeps its ~49 KB, room for the forged offset table
+    for (auto& [n, v] : ch)
+        for (auto& x : v) x = float((s = s * 1664525u + 1013904223u) >> 8);
+    for (const char* f : {"f.0001.exr", "f.0002.exr"}) writeExr(tmp.path / f, box(0, 0, 63, 63), ch);
+    const fs::path forged = tmp.path / "f.0002.exr";
+    auto b = bytesOf(forged);
+    int32_t window[4] = {0, 0, 19999, 5999};
+    std::memcpy(&b[valueAt(b, "dataWindow", "box2i")], window, sizeof window);
+    writeBytes(forged, b);
+    const std::string msg =
+        errorOf([&] { kestrel::exr::ExrInput in(forged.string(), int64_t(1) << 27); });
+    EXPECT_NE(msg.find("data window 20000x6000 with 3 channels declares 1440000000 bytes of "
+                       "pixels, over 10,000 times the file's " +
+                       std::to_string(fs::file_size(forged)) + " bytes"),
+              std::string::npos)
+        << msg;
+    if (msg.empty()) return;  // the loader would allocate 1.44 GB: not tried without the check
+    const std::string frame = frameError((tmp.path / "f.####.exr").string(), 2);
+    EXPECT_NE(frame.find("frame 2: " + forged.string() + ": data window 20000x6000"),
+              std::string::npos)
+        << frame;
+    EXPECT_EQ(frameError((tmp.path / "f.####.exr").string(), 1), "");
 }
 
 // Issue 40 item 13: a camera.json matrix that places no camera (all zero; 1e308, which is inf as
