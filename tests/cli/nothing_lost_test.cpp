@@ -465,4 +465,38 @@ TEST_F(CliNothingLost, OutputNameTooLongForItsTemporaryIsRefusedBeforeFrameOne) 
     EXPECT_EQ(std::distance(fs::directory_iterator(work() / "out"), fs::directory_iterator()), 2);
 }
 
+// --- Memory (item 10) ---------------------------------------------------------------------
+
+/// Rewrites the data and display windows of the EXR at `path` to width x height, in place:
+/// the header of a damaged or forged file, its pixels left as they are.
+void forgeWindows(const fs::path& path, int32_t width, int32_t height) {
+    std::string bytes = readText(path);
+    for (const std::string name : {"dataWindow", "displayWindow"}) {
+        const std::string key = name + '\0' + "box2i" + '\0';
+        const auto at = bytes.find(key);
+        ASSERT_NE(at, std::string::npos) << name;
+        const int32_t box[4] = {0, 0, width - 1, height - 1};
+        bytes.replace(at + key.size() + 4, sizeof box, reinterpret_cast<const char*>(box),
+                      sizeof box);
+    }
+    writeText(path, bytes);
+}
+
+TEST_F(CliNothingLost, OutOfMemoryNamesTheFrameAndTheFileThatDeclaredItsSize) {
+    // 3200x3200 with the scene's 25 float channels declares under 1 GiB (not refused by the
+    // size rule); its planes do not fit in 150 MB of address space, the 32x24 frames do.
+    fs::create_directories(work() / "forged");
+    for (const char* f : {"frame_0001.exr", "frame_0002.exr"})
+        fs::copy_file(work() / "scene" / "noisy" / f, work() / "forged" / f);
+    forgeWindows(work() / "forged" / "frame_0002.exr", 3200, 3200);
+    auto r = box.runWithin(60,
+                           {"run", (graphDir() / "copy.json").string(), "--input",
+                            "forged/frame_####.exr", "--output", "out/c.####.exr", "--threads", "2"},
+                           150000);
+    EXPECT_EQ(r.code, 1) << r.all();
+    expectOneErrorLine(r, {"frame 2: out of memory", "3200x3200 frame (the previous was 32x24)",
+                           "forged/frame_0002.exr declares"});
+    EXPECT_TRUE(fs::exists(work() / "out" / "c.0001.exr")) << "frame 1 fits: it is written";
+}
+
 }  // namespace
