@@ -465,6 +465,37 @@ TEST_F(CliNothingLost, OutputNameTooLongForItsTemporaryIsRefusedBeforeFrameOne) 
     EXPECT_EQ(std::distance(fs::directory_iterator(work() / "out"), fs::directory_iterator()), 2);
 }
 
+TEST_F(CliNothingLost, ResumeWritesAgainAPreviewLostOrCutShort) {
+    auto run = [&](std::vector<std::string> extra) {
+        extra.insert(extra.begin(), {"--frames", "1-3", "--output", "out/c.####.exr", "--set",
+                                     "output.preview=out/p.####.png"});
+        return box.run(runArgs((graphDir() / "copy.json").string(), extra));
+    };
+    auto first = run({});
+    ASSERT_EQ(first.code, 0) << first.all();
+    const fs::path out = work() / "out";
+    const std::string exr1 = readText(out / "c.0001.exr");
+    struct Case {
+        std::string damage, png;
+    };
+    for (const auto& c : std::vector<Case>{{"cut short", "p.0003.png"},
+                                           {"lost to a failed write", "p.0002.png"}}) {
+        SCOPED_TRACE(c.damage);
+        const std::string before = readText(out / c.png);
+        if (c.damage == "cut short")
+            writeText(out / c.png, before.substr(0, before.size() / 2));
+        else
+            fs::remove(out / c.png);
+        auto resumed = run({"--resume"});
+        EXPECT_EQ(resumed.code, 0) << resumed.all();
+        EXPECT_NE(resumed.err.find("preview out/" + c.png + " is missing or incomplete"),
+                  std::string::npos)
+            << resumed.all();
+        EXPECT_EQ(readText(out / c.png), before) << "the preview was not written again";
+    }
+    EXPECT_EQ(readText(out / "c.0001.exr"), exr1) << "--resume rewrote a complete frame";
+}
+
 // --- Memory (item 10) ---------------------------------------------------------------------
 
 /// Rewrites the data and display windows of the EXR at `path` to width x height, in place:
