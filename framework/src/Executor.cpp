@@ -1,6 +1,7 @@
 #include "kestrel/Executor.h"
 
 #include <chrono>
+#include <new>
 
 #include "CompilerImpl.h"
 #include "kestrel/Log.h"
@@ -184,6 +185,25 @@ void Executor::beginRun(int64_t firstFrame, int64_t lastFrame) {
     }
 }
 
+namespace {
+/// The frame files `n` reads for `frame` ("a.exr, b.exr"; "" for a pass that reads none; its
+/// "path" parameter's, not sidecars): what an out-of-memory error names, since a forged data
+/// window is the usual cause.
+std::string filesOf(const NodeState& n, int64_t frame) {
+    std::string list;
+    try {
+        for (const auto& [file, param] : n.pass->filesRead(frame))
+            if (param == "path") list += (list.empty() ? "" : ", ") + file;
+    } catch (const std::exception&) {  // naming the files is a courtesy, never a second error
+    }
+    return list;
+}
+
+std::string sizeText(Extent e) {
+    return std::to_string(e.width) + "x" + std::to_string(e.height);
+}
+}  // namespace
+
 void Executor::runFrame(int64_t frameNumber, bool writeOutputs) {
     Impl& m = *impl_;
     SceneData& scene = m.scene[m.sceneCur];
@@ -209,17 +229,25 @@ void Executor::runFrame(int64_t frameNumber, bool writeOutputs) {
         std::string msg = "frame " + std::to_string(frameNumber) + ", pass '" + n.name + "' (" +
                           n.type->desc.type +
                           (fusedWith.empty() ? "" : ", fused with " + fusedWith) + "): " + e.what();
+        if (dynamic_cast<const std::bad_alloc*>(&e)) {
+            const std::string files = filesOf(n, frameNumber);
+            msg += " (out of memory" + (files.empty() ? "" : " reading " + files) + ")";
+        }
         if (dynamic_cast<const FrameError*>(&e)) throw FrameError(msg);
         throw Error(msg);
     };
 
     std::optional<Extent> extent;
+    const NodeState* sizer = nullptr;  // the source whose file gave the frame's size
     for (int v : m.g.order) {
         auto& n = m.g.nodes[size_t(v)];
         try {
             ctx.extent = extent.value_or(m.extent);
             auto e = n.pass->beginFrame(ctx);
-            if (e && !extent) extent = e;
+            if (e && !extent) {
+                extent = e;
+                sizer = &n;
+            }
         } catch (const std::exception& e) {
             fail(n, e);
         }
@@ -229,10 +257,22 @@ void Executor::runFrame(int64_t frameNumber, bool writeOutputs) {
         throw Error("frame " + std::to_string(frameNumber) +
                     ": no pass reports a frame size and no default size was given");
     if (ext != m.extent) {
+        const Extent prev = m.extent;
         if (m.frames > 0)
             spdlog::warn("frame {}: resolution changed from {}x{} to {}x{}; history reset",
                          frameNumber, m.extent.width, m.extent.height, ext.width, ext.height);
-        m.allocate(ext);
+        try {
+            m.allocate(ext);
+        } catch (const std::bad_alloc&) {
+            const std::string files = sizer ? filesOf(*sizer, frameNumber) : "";
+            m.extent = Extent{};  // partly allocated: the next run of a frame starts over
+            m.historyValid = m.hasPrevScene = false;
+            throw Error("frame " + std::to_string(frameNumber) + ": out of memory allocating the " +
+                        "planes of a " + sizeText(ext) + " frame" +
+                        (m.frames > 0 ? " (the previous was " + sizeText(prev) + ")" : "") +
+                        (files.empty() ? "" : ", the size " + files + " declares") +
+                        ": is its data window right?");
+        }
     }
     ctx.extent = ext;
     ctx.historyValid = m.historyValid;

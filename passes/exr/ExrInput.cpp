@@ -55,6 +55,24 @@ void checkWindow(const char* what, const Box& b, int64_t maxPixels) {
                     " (refused before allocating)");
 }
 
+/// OpenImageIO's rule for a header not to trust: the pixels it declares (the data window's
+/// pixels times each channel's stored size) over 10,000 times the file's size and over 1 GiB.
+/// Real EXRs compress far less; a 4 MB file declaring 4000x4000 made a run allocate 4.3 GB.
+void checkDeclaredSize(const Imf::Header& h, const Box& dw, uint64_t fileSize) {
+    uint64_t bytesPerPixel = 0, channels = 0;
+    for (auto it = h.channels().begin(); it != h.channels().end(); ++it, ++channels)
+        bytesPerPixel += it.channel().type == Imf::HALF ? 2 : 4;  // UINT and FLOAT: 4
+    const uint64_t declared = uint64_t(dw.width()) * uint64_t(dw.height()) * bytesPerPixel;
+    constexpr uint64_t kRatio = 10000, kFloor = uint64_t(1) << 30;
+    if (declared > kFloor && declared / kRatio > fileSize)
+        throw Error("data window " + std::to_string(dw.width()) + "x" +
+                    std::to_string(dw.height()) + " with " + std::to_string(channels) +
+                    " channels declares " + std::to_string(declared) +
+                    " bytes of pixels, over 10,000 times the file's " + std::to_string(fileSize) +
+                    " bytes and over 1 GiB (OpenImageIO's limit): a damaged or forged header "
+                    "(refused before allocating)");
+}
+
 /// Value size of the fixed-size attribute types OpenEXR 3.1 knows, else -1. Their readers read
 /// exactly this many bytes whatever size the file declares, so a different declared size would
 /// make the walk below and OpenEXR's own parse see different attributes.
@@ -322,6 +340,8 @@ ExrInput::ExrInput(const std::string& path, int64_t maxPixels) : path_(path) {
                         " bytes x maxPixels " + std::to_string(maxPixels) + " = " +
                         std::to_string(uint64_t(maxPixels) * kMaxBytesPerPixel) +
                         " (refused before allocating)");
+        // After the checks above, whose messages say more about the damage they find.
+        checkDeclaredSize(probe, data_, fileSize);
 
         header_ = probe;
         zip_ = ZipScanlines::plan(path, probe, !multiPart && !tiled(probe), *stream_, headersEnd,

@@ -287,6 +287,25 @@ void ExrLoader::beginRun(const RunContext& rc) {
     lastFrame_ = rc.lastFrame >= rc.firstFrame ? rc.lastFrame : INT64_MAX;
     haveLast_ = false;
     step_ = 1;
+    checkCameraFrames(rc.firstFrame);
+}
+
+std::string ExrLoader::cameraGap(const std::vector<int64_t>& frames) const {
+    std::string list = std::to_string(frames.front());
+    if (frames.size() > 1) list += " (and " + std::to_string(frames.size() - 1) + " more)";
+    return "camera file " + cameras_->path().string() + " lists no frame " + list +
+           " of the input: its positions, normals and motion would be computed without a "
+           "camera; write it for every frame rendered (scripts/blender/kestrel_setup.py "
+           "--camera-only --frames A-B, docs/blender.md)";
+}
+
+void ExrLoader::checkCameraFrames(int64_t firstFrame) const {
+    // Before frame 1, not at the first frame without an entry, hours into a shot.
+    if (plan_.layout != Layout::Blender || !cameras_) return;
+    std::vector<int64_t> missing;
+    for (int64_t f : availableFrames())
+        if (f >= firstFrame && f <= lastFrame_ && !cameras_->has(f)) missing.push_back(f);
+    if (!missing.empty()) throw Error(cameraGap(missing));
 }
 
 void ExrLoader::endRun() {
@@ -822,9 +841,8 @@ ExrInput& ExrLoader::openRole(const std::string& role, int64_t frame) {
 void ExrLoader::fillScene(int64_t frame, SceneData& scene) {
     scene = SceneData{};
     if (plan_.layout == Layout::Blender && cameras_) {
-        if (!cameras_->fill(frame, scene) && !logged_)
-            spdlog::warn("ExrLoader: {} lists no frame {}; no camera matrices",
-                         cameras_->path().string(), frame);
+        if (!cameras_->fill(frame, scene))  // a frame written after beginRun's check
+            throw FrameError("frame " + std::to_string(frame) + ": " + cameraGap({frame}));
     } else if (plan_.layout == Layout::Games202 && games202Matrices_) {
         std::string mat = filePath("matrix", frame);
         mat = mat.substr(0, mat.size() - 4) + ".mat";

@@ -49,6 +49,9 @@ private:
     void replaceAbsurdValues(FrameContext& ctx, PassIO& io,
                              const std::vector<const Recipe*>& active, int W, int H);
     void fillScene(int64_t frame, SceneData& scene);
+    /// Throws Error naming camera.json and the first input frame in the run it lists no entry for.
+    void checkCameraFrames(int64_t firstFrame) const;
+    std::string cameraGap(const std::vector<int64_t>& frames) const;
     /// The jittered* outputs: their albedo's recipe where the render is anti-aliased
     /// (PixelJitter.h, decided once); an output the channels parameter set stays as set.
     /// `first`: the probed first file (null for GAMES202), read again for its depth only when

@@ -137,6 +137,24 @@ bool isCompleteExr(const std::string& path) {
     }
 }
 
+/// A PNG with its signature first and its closing IEND chunk last: what a write cut short,
+/// or one that failed and was never renamed into place, lacks.
+bool isCompletePng(const std::string& path) {
+    static const unsigned char signature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+    static const unsigned char iend[12] = {0, 0, 0, 0, 'I', 'E', 'N', 'D', 0xae, 0x42, 0x60, 0x82};
+    std::ifstream f(path, std::ios::binary | std::ios::ate);
+    if (!f) return false;
+    const std::streamoff size = f.tellg();
+    unsigned char head[8], tail[12];
+    if (size < std::streamoff(sizeof head + sizeof tail)) return false;
+    f.seekg(0);
+    if (!f.read(reinterpret_cast<char*>(head), sizeof head)) return false;
+    f.seekg(size - std::streamoff(sizeof tail));
+    if (!f.read(reinterpret_cast<char*>(tail), sizeof tail)) return false;
+    return std::memcmp(head, signature, sizeof head) == 0 &&
+           std::memcmp(tail, iend, sizeof tail) == 0;
+}
+
 /// The test-only fault hook: KESTREL_TEST_WRITE_FAULT=STEP:FRAME (STEP one of open, chunk,
 /// fsync, rename) makes the write of FRAME fail at that step as a full disk or a lost mount
 /// would. Read once per writer, so it costs nothing per frame when unset.
@@ -218,14 +236,24 @@ void ExrWriter::beginRun(const RunContext& rc) {
 }
 
 bool ExrWriter::frameWritten(int64_t frame) const {
+    // A frame is written when every file it writes is complete: the EXR and its preview (a
+    // preview lost to a failed write was never made again by --resume).
     const std::string file = path_.expand(frame);
     std::error_code ec;
     if (!fs::exists(file, ec)) return false;
-    if (isCompleteExr(file)) return true;
-    spdlog::warn(
-        "ExrWriter: {} is incomplete or unreadable (an interrupted write?); frame {} "
-        "is written again",
-        file, frame);
+    if (!isCompleteExr(file)) {
+        spdlog::warn(
+            "ExrWriter: {} is incomplete or unreadable (an interrupted write?); frame {} "
+            "is written again",
+            file, frame);
+        return false;
+    }
+    if (!preview_) return true;
+    const std::string png = preview_->expand(frame);
+    if (isCompletePng(png)) return true;
+    spdlog::warn("ExrWriter: preview {} is missing or incomplete (a failed write?); frame {} is "
+                 "written again",
+                 png, frame);
     return false;
 }
 

@@ -3,8 +3,10 @@
 #include <png.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <vector>
 
 #include "kestrel/Error.h"
@@ -32,6 +34,13 @@ float srgbEncode(float v) {
     v = std::clamp(v, 0.f, 1.f);
     return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.f / 2.4f) - 0.055f;
 }
+
+namespace {
+/// errno as words ("No space left on device"); a write that failed without setting it says so.
+std::string errnoReason() {
+    return errno ? std::strerror(errno) : "the system gave no reason";
+}
+}  // namespace
 
 namespace {
 uint8_t to8(float v) {
@@ -71,14 +80,16 @@ void writePngPreview(const ImageView& img, const std::string& path, float exposu
             }
         }
 
+    errno = 0;  // what the failing open or write sets is the reason the user is given
     std::FILE* f = std::fopen(path.c_str(), "wb");
-    if (!f) throw Error("cannot create PNG " + path);
+    if (!f) throw Error("cannot create PNG " + path + ": " + errnoReason());
     png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
     png_infop info = png ? png_create_info_struct(png) : nullptr;
     if (!png || !info || setjmp(png_jmpbuf(png))) {
         png_destroy_write_struct(&png, &info);
+        const std::string why = errnoReason();
         std::fclose(f);
-        throw Error("cannot write PNG " + path);
+        throw Error("cannot write PNG " + path + ": " + why);
     }
     png_init_io(png, f);
     png_set_IHDR(png, info, png_uint_32(W), png_uint_32(H), 8, PNG_COLOR_TYPE_RGB,
@@ -88,7 +99,7 @@ void writePngPreview(const ImageView& img, const std::string& path, float exposu
     for (int y = 0; y < H; ++y) png_write_row(png, &rgb[size_t(y) * size_t(W) * 3]);
     png_write_end(png, nullptr);
     png_destroy_write_struct(&png, &info);
-    if (std::fclose(f) != 0) throw Error("cannot write PNG " + path);
+    if (std::fclose(f) != 0) throw Error("cannot write PNG " + path + ": " + errnoReason());
 }
 
 }  // namespace kestrel::exr

@@ -1,12 +1,14 @@
 #include "SceneMatrices.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <nlohmann/json.hpp>
 #include <vector>
 
 #include "kestrel/Error.h"
 #include "kestrel/InputFiles.h"
+#include "kestrel/Math.h"
 
 namespace kestrel::exr {
 
@@ -27,13 +29,28 @@ Mat4 ndcToPixel(int width, int height) {
 }
 
 namespace {
-Mat4 toMat(const nlohmann::json& j) {
+// The bound of the loader's absurd input values (docs/errors.md): a matrix entry beyond it
+// (1e308 became inf as a float) places no camera or object anywhere.
+constexpr double kAbsurd = 1e30;
+
+/// `key` of one frame's entry; throws Error naming the key when it is not a 4x4 matrix of
+/// finite, not absurd numbers, or (`invertible`) when it has no inverse (all zero): a camera
+/// matrix without an inverse turns every pixel's position, normal and motion into NaN or 0.
+Mat4 toMat(const nlohmann::json& frame, const std::string& key, bool invertible) {
+    const nlohmann::json& j = frame.at(key);
     Mat4 m;
-    if (!j.is_array() || j.size() != 4) throw Error("a matrix is not a 4x4 nested list");
+    if (!j.is_array() || j.size() != 4) throw Error(key + " is not a 4x4 nested list");
     for (int r = 0; r < 4; ++r) {
-        if (!j[r].is_array() || j[r].size() != 4) throw Error("a matrix row has not 4 entries");
-        for (int c = 0; c < 4; ++c) m.m[r][c] = j[r][c].get<float>();
+        if (!j[r].is_array() || j[r].size() != 4) throw Error(key + ": a row has not 4 entries");
+        for (int c = 0; c < 4; ++c) {
+            const double v = j[r][c].get<double>();
+            if (!std::isfinite(v) || std::fabs(v) > kAbsurd)
+                throw Error(key + "[" + std::to_string(r) + "][" + std::to_string(c) + "] is " +
+                            nlohmann::json(v).dump() + " (non-finite or |v| > 1e30)");
+            m.m[r][c] = float(v);
+        }
     }
+    if (invertible && !inverse(m)) throw Error(key + " has no inverse (all zero?)");
     return m;
 }
 }  // namespace
@@ -60,6 +77,21 @@ std::optional<float> statedFilterWidth(const nlohmann::json& j) {
 }
 }  // namespace
 
+namespace {
+SceneData frameEntry(const nlohmann::json& f, const Mat4& viewport,
+                     const std::map<std::string, int32_t>& ids) {
+    SceneData s;
+    s.hasCamera = true;
+    s.worldToCamera = toMat(f, "view", true);
+    s.worldToPixel = viewport * toMat(f, "view_projection", true);
+    if (f.contains("objects"))
+        for (const auto& [name, m] : f["objects"].items())
+            if (auto it = ids.find(name); it != ids.end())
+                s.objectToWorld[it->second] = toMat(f["objects"], name, false);  // scale 0 hides one
+    return s;
+}
+}  // namespace
+
 BlenderCameras::BlenderCameras(const fs::path& file) : path_(file) {
     const std::string text = readRegularFile(file, "camera file", kMaxSidecarBytes);
     checkJsonText(text, file.string());
@@ -73,15 +105,12 @@ BlenderCameras::BlenderCameras(const fs::path& file) : path_(file) {
                 ids[name] = id.get<int32_t>();
         pixelFilterWidth_ = statedFilterWidth(j);
         for (const auto& f : j.at("frames")) {
-            SceneData s;
-            s.hasCamera = true;
-            s.worldToCamera = toMat(f.at("view"));
-            s.worldToPixel = viewport * toMat(f.at("view_projection"));
-            if (f.contains("objects"))
-                for (const auto& [name, m] : f["objects"].items())
-                    if (auto it = ids.find(name); it != ids.end())
-                        s.objectToWorld[it->second] = toMat(m);
-            frames_[f.at("frame").get<int64_t>()] = std::move(s);
+            const int64_t frame = f.at("frame").get<int64_t>();
+            try {
+                frames_[frame] = frameEntry(f, viewport, ids);
+            } catch (const std::exception& e) {
+                throw Error("frame " + std::to_string(frame) + ": " + e.what());
+            }
         }
     } catch (const Error& e) {
         throw Error("camera file " + file.string() + ": " + e.what());

@@ -16,6 +16,7 @@ public:
     explicit BlenderCameras(const std::filesystem::path& file);
     /// Fills scene for `frame`; false when the file lists no such frame.
     bool fill(int64_t frame, SceneData& scene) const;
+    bool has(int64_t frame) const { return frames_.count(frame) > 0; }
     const std::filesystem::path& path() const { return path_; }
     /// The pixel filter width its render settings state, if they do.
     std::optional<float> pixelFilterWidth() const { return pixelFilterWidth_; }

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <cstring>
 #include <fstream>
 #include <limits>
@@ -19,6 +20,13 @@
 #include "kestrel/Error.h"
 
 namespace kestrel::exr {
+
+namespace {
+/// errno as words ("No space left on device"); a stream that failed without setting it says so.
+std::string errnoReason() {
+    return errno ? std::strerror(errno) : "the system gave no reason";
+}
+}  // namespace
 
 namespace {
 
@@ -197,8 +205,9 @@ void writeZipScanlines(const std::string& path, const Imf::Header& header, const
         if (failed) throw Error("encoding: " + failure);
     };
 
+    errno = 0;  // what the failing open or write sets is the reason the user is given
     std::ofstream file(path, std::ios::binary | std::ios::trunc);
-    if (!file) throw Error("cannot create the file");
+    if (!file) throw Error("cannot create the file: " + errnoReason());
     {
         Imf::StdOFStream os(file, path.c_str());
         unsigned char b[8];
@@ -232,7 +241,7 @@ void writeZipScanlines(const std::string& path, const Imf::Header& header, const
         os.write(reinterpret_cast<const char*>(offsets.data()), int(offsets.size()));
     }
     file.close();
-    if (!file) throw Error("writing failed (disk full?)");
+    if (!file) throw Error("writing failed: " + errnoReason());
 }
 
 }  // namespace kestrel::exr

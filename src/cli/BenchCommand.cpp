@@ -347,9 +347,9 @@ void checkCropPatterns(const BenchOptions& o, const std::vector<Prepared>& prepa
     }
 }
 
-int runBench(const BenchOptions& o) {
-    auto plugins = loadPlugins();
-    BenchRun b{o, plugins->registry, o.input, o.reference, eval::ToneMap::Reinhard, {}, 0, {}};
+/// The input, frames and tone map of the bench; throws Error (a usage error) naming the option.
+void setUpRun(BenchRun& b) {
+    const BenchOptions& o = b.options;
     if (b.input.empty()) {
         fs::path scene = ensureDefaultScene(fs::path("kestrel-out") / "default-scene");
         b.input = (scene / "noisy" / "frame_####.exr").string();
@@ -361,38 +361,49 @@ int runBench(const BenchOptions& o) {
     b.toneMap = *tm;
     b.frames = o.frames.empty() ? findFrames(b.input) : parseFrameList(o.frames);
     if (b.frames.empty()) throw Error("--input " + b.input + ": no frames found");
-    try {  // a range past the sequence's end fails before any setting runs
-        if (!o.frames.empty())
-            checkFramesExist(b.frames, findFrames(b.input), "--frames " + o.frames, b.input);
-    } catch (const Error& e) {
-        std::cerr << "error: " << e.what() << "\n";
-        return 2;
-    }
+    if (!o.frames.empty())  // a range past the sequence's end fails before any setting runs
+        checkFramesExist(b.frames, findFrames(b.input), "--frames " + o.frames, b.input);
     b.report.title = "kestrel bench";
     b.report.frames = b.frames;
     b.report.toneMap = *tm;
     b.cropFrame = b.frames.size() / 2;
+}
 
+/// Throws GraphError, one line per distinct reason, when no graph compiles for this input:
+/// the same mistake `run` refuses with exit 2 (the input row alone benches nothing).
+void refuseWhenNoGraphPrepares(const std::vector<Setting>& settings,
+                               const std::vector<Prepared>& prepared) {
+    std::vector<Diagnostic> reasons;
+    for (size_t i = 0; i < settings.size(); ++i) {
+        if (settings[i].inputOnly) continue;
+        if (prepared[i].error.empty()) return;
+        const bool seen = std::any_of(reasons.begin(), reasons.end(), [&](const Diagnostic& d) {
+            return d.message == prepared[i].error;
+        });
+        if (!seen) reasons.push_back({settings[i].graph.string(), prepared[i].error});
+    }
+    if (!reasons.empty()) throw GraphError(std::move(reasons));
+}
+
+int runBench(const BenchOptions& o) {
+    auto plugins = loadPlugins();
+    BenchRun b{o, plugins->registry, o.input, o.reference, eval::ToneMap::Reinhard, {}, 0, {}};
     std::vector<Setting> settings;
-    try {
-        settings = makeSettings(o, plugins->registry);
-    } catch (const GraphError&) {
-        throw;
-    } catch (const Error& e) {  // a sweep that names nothing, or a value a graph refuses
-        std::cerr << "error: " << e.what() << "\n";
-        return 2;
-    }
     std::vector<Prepared> prepared;
-    for (const auto& s : settings) prepared.push_back(prepare(s, b));
-    try {
+    // Every mistake found before the first frame is a usage error, exit 2, as for `run`.
+    const int usage = exitTwoOnUsageError([&] {
+        setUpRun(b);
+        settings = makeSettings(o, plugins->registry);
+        for (const auto& s : settings) prepared.push_back(prepare(s, b));
+        refuseWhenNoGraphPrepares(settings, prepared);
         checkCropPatterns(o, prepared);
-    } catch (const Error& e) {
-        std::cerr << "error: " << e.what() << "\n";
-        return 2;
-    }
+        return 0;
+    });
+    if (usage != 0) return usage;
     std::printf("%-34s %10s %7s %6s %9s %8s %10s %9s\n", "graph / setting", "relMSE", "PSNR",
                 "SSIM", "temporal", "speckles", "ms/frame", "load ms");
     int skipped = 0;
+    std::string firstFailure;
     for (size_t i = 0; i < settings.size(); ++i) {
         try {
             if (!prepared[i].error.empty()) throw Error(prepared[i].error);
@@ -401,11 +412,13 @@ int runBench(const BenchOptions& o) {
             // A graph this scene cannot feed (e.g. a split graph on a scene without the split) is
             // reported and skipped; the other rows still make a report.
             std::printf("%-34s skipped: %s\n", settings[i].name.c_str(), e.what());
+            if (firstFailure.empty()) firstFailure = e.what();
             ++skipped;
         }
         prepared[i].compiled.reset();  // its passes are done with
     }
-    if (b.report.rows.empty()) throw Error("no graph could run on this input");
+    if (b.report.rows.empty())  // every setting failed during its frames: a runtime failure
+        throw Error("no graph could run on this input: " + firstFailure);
     if (skipped) spdlog::warn("{} setting(s) skipped: the input cannot feed them", skipped);
     rusage ru{};
     getrusage(RUSAGE_SELF, &ru);

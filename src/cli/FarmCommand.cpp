@@ -97,9 +97,34 @@ void checkPlanOut(const FarmPlan& plan, const std::string& out) {
     read.check(out, "--out", "give another --out");
 }
 
+/// Every task of a plan would fail alike on the farm, after queueing, when the graph does not
+/// load or validate with the plan's --input/--output/--set, or writes a file it reads (the
+/// output pattern equal to the input's): refused now, as `run` would. The graph is validated
+/// without opening the frames: a plan may be made before the render has written them.
+void checkPlanRuns(const FarmPlan& plan) {
+    auto plugins = loadPlugins();
+    GraphOptions go;
+    go.graph = plan.graph;
+    go.inputs = plan.inputs;
+    go.outputs = plan.outputs;
+    go.sets = plan.sets;
+    const GraphDesc desc = prepareGraph(go, plugins->registry);
+    CompileOptions opt;
+    opt.validateOnly = true;
+    opt.firstFrame = plan.first;
+    compileGraph(desc, plugins->registry, opt);
+    RunFrames frames;
+    for (int64_t f = std::max<int64_t>(plan.first - plan.warmup, 0); f <= plan.last; ++f) {
+        frames.read.push_back(f);
+        if (f >= plan.first) frames.written.push_back(f);
+    }
+    checkOutputsAreSafe(desc, plugins->registry, frames, "");
+}
+
 int planCommand(FarmArgs a) {
     checkRunOptions(a.plan);
     const FarmPlan plan = makePlan(a.plan);
+    checkPlanRuns(plan);
     if (!a.out.empty()) checkPlanOut(plan, a.out);
     std::string text;
     if (a.format == "slurm")

@@ -6,6 +6,7 @@
 
 #include <cerrno>
 #include <filesystem>
+#include <iterator>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -69,6 +70,57 @@ void checkFrameTokens(const std::vector<NamedPattern>& outputs, size_t written) 
                         ") has no frame number (#, @ or %04d): each of the " +
                         std::to_string(written) + " frames would overwrite the last; write e.g. " +
                         withFrameToken(o.pattern.pattern()));
+}
+
+/// `pattern` with the folders that hold the frame number left out and the number in the file
+/// name: out/####/f.exr -> out/f.####.exr (the fix the message suggests).
+std::string tokenInFileName(const FramePattern& pattern) {
+    const fs::path a(pattern.expand(1)), b(pattern.expand(2)), p(pattern.pattern());
+    fs::path folder;
+    for (auto ia = a.begin(), ib = b.begin(), ip = p.begin(); ip != p.end(); ++ia, ++ib, ++ip)
+        if (std::next(ip) != p.end() && *ia == *ib) folder /= *ip;
+    const fs::path file = folder / p.filename();
+    return a.filename() == b.filename() ? withFrameToken(file.string()) : file.string();
+}
+
+/// The frame number in a folder name (out/####/f.exr): only the first frame's folder is made
+/// before the run, so frame 2 failed hours in. One rule: every frame's file in one folder.
+void checkTokenInFileName(const std::vector<NamedPattern>& outputs) {
+    for (const auto& o : outputs)
+        if (o.pattern.hasFrameToken() && fs::path(o.pattern.expand(1)).parent_path() !=
+                                             fs::path(o.pattern.expand(2)).parent_path())
+            throw Error("output pattern '" + o.pattern.pattern() + "' (" + o.label +
+                        ") has the frame number in a folder name: only the first frame's folder "
+                        "would be created; put it in the file name, e.g. " +
+                        tokenInFileName(o.pattern));
+}
+
+/// The longest name a folder takes (NAME_MAX), asked of its nearest existing ancestor.
+long nameMax(fs::path dir) {
+    std::error_code ec;
+    while (!dir.empty() && !fs::is_directory(dir, ec)) dir = dir.parent_path();
+    const long n = ::pathconf(dir.empty() ? "." : dir.c_str(), _PC_NAME_MAX);
+    return n > 0 ? n : 255;
+}
+
+/// Each frame is written as `.NAME.tmp-PID` first (ExrWriter.cpp), 6 bytes and a pid (up to 10
+/// digits) longer than NAME: a name within NAME_MAX but not with those failed at the write.
+void checkNameLengths(const std::vector<NamedPattern>& outputs, const RunFrames& frames) {
+    constexpr size_t kTemporaryExtra = 6 + 10;
+    for (const auto& o : outputs)
+        for (int64_t f : frames.written) {
+            const fs::path file(o.pattern.expand(f));
+            const size_t bytes = file.filename().string().size();
+            const size_t limit = size_t(nameMax(file.parent_path()));
+            if (bytes + kTemporaryExtra > limit)
+                throw Error("output " + file.string() + " (" + o.label + ", frame " +
+                            std::to_string(f) + "): the file name is " + std::to_string(bytes) +
+                            " bytes; its temporary name (.NAME.tmp-PID, " +
+                            std::to_string(kTemporaryExtra) + " bytes more) would exceed the " +
+                            std::to_string(limit) + "-byte limit of a name (NAME_MAX); use at most " +
+                            std::to_string(limit - kTemporaryExtra) + " bytes");
+            if (!o.pattern.hasFrameToken()) break;
+        }
 }
 
 /// What makes two names the same file: the resolved path (symlinks and '..' followed) and,
@@ -225,6 +277,8 @@ void checkOutputsAreSafe(const GraphDesc& graph, const Registry& registry, const
     checkNotInputs(inputs, outputs, frames, read);  // first: losing inputs is the worse harm
     Resolver resolver;
     checkFrameTokens(outputs, frames.written.size());
+    checkTokenInFileName(outputs);
+    checkNameLengths(outputs, frames);
     checkOutputsDistinct(outputs, frames, resolver);
 }
 

@@ -89,11 +89,14 @@ public:
     CliResult run(const std::vector<std::string>& args, const std::string& env = "") {
         return runLimited(args, env, "");
     }
-    /// run() under `timeout SECONDS` and a 4 GB address-space limit: for inputs that once made
-    /// the CLI read forever, so a regression fails the test instead of hanging the machine.
-    CliResult runWithin(int seconds, const std::vector<std::string>& args) {
+    /// run() under `timeout SECONDS` and an address-space limit (4 GB unless `kilobytes` says):
+    /// for inputs that once made the CLI read forever, so a regression fails the test instead of
+    /// hanging the machine, and for what the CLI does when memory runs out.
+    CliResult runWithin(int seconds, const std::vector<std::string>& args,
+                        long kilobytes = 4000000) {
         return runLimited(args, "",
-                          "ulimit -v 4000000 && timeout -s KILL " + std::to_string(seconds) + " ");
+                          "ulimit -v " + std::to_string(kilobytes) + " && timeout -s KILL " +
+                              std::to_string(seconds) + " ");
     }
 
 private:

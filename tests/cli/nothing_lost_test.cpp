@@ -375,4 +375,159 @@ TEST_F(CliNothingLost, GapInTheSequenceIsACutAndSaid) {
     }
 }
 
+// --- Mistakes refused before any work: farm plan, bench (item 13) ------------------------
+
+TEST_F(CliNothingLost, FarmPlanOfAGraphThatCannotRunIsRefused) {
+    writeText(work() / "bad.json", copyGraphWith(R"({"exposure": 500})"));
+    struct Case {
+        std::string graph, output;
+        std::vector<std::string> needles;
+    };
+    const std::string copy = (graphDir() / "copy.json").string();
+    for (const auto& c : std::vector<Case>{
+             {"nosuch.json", "out/c.####.exr", {"nosuch.json"}},
+             {"bad.json", "out/c.####.exr", {"passes[1].params.exposure", "got 500"}},
+             {copy, "scene/noisy/frame_####.exr", {"is the input pattern", "--output"}}}) {
+        SCOPED_TRACE(c.graph + " " + c.output);
+        auto r = box.run({"farm", "plan", c.graph, "--input", "scene/noisy/frame_####.exr",
+                          "--output", c.output, "--frames", "1-3", "--chunk", "2", "--out",
+                          "plan.sh"});
+        EXPECT_EQ(r.code, 2) << r.all();
+        expectOneErrorLine(r, {c.needles.front()});
+        for (const auto& n : c.needles) EXPECT_NE(r.err.find(n), std::string::npos) << r.all();
+        EXPECT_FALSE(fs::exists(work() / "plan.sh"));
+    }
+    expectInputsUntouched();
+    // A plan made before the render exists still validates the graph alone.
+    auto ok = box.run({"farm", "plan", copy, "--input", "later/f_####.exr", "--output",
+                       "out/c.####.exr", "--frames", "1-3", "--chunk", "2", "--out", "plan.sh"});
+    EXPECT_EQ(ok.code, 0) << ok.all();
+}
+
+TEST_F(CliNothingLost, BenchMistakesExitTwoWithTheReason) {
+    const std::string copy = (graphDir() / "copy.json").string();
+    // The split graph needs the diffuse/specular split this canonical scene lacks.
+    const std::string split =
+        (fs::path(KESTREL_SOURCE_DIR) / "graphs" / "svgf-split.json").string();
+    struct Case {
+        std::vector<std::string> args;
+        std::string needle;
+    };
+    for (const auto& c : std::vector<Case>{
+             {{copy, "--input", "scene/noisy/frame_####.exr", "--frames", "1-x"}, "--frames"},
+             {{copy, "--input", "scene/noisy/frame_####.exr", "--tonemap", "nosuch"}, "--tonemap"},
+             {{copy, "--input", "nosuch/frame_####.exr"}, "nosuch/frame_####.exr"},
+             {{split, "--input", "scene/noisy/frame_####.exr"}, "input.specular is absent"}}) {
+        std::vector<std::string> args = {"bench"};
+        args.insert(args.end(), c.args.begin(), c.args.end());
+        args.insert(args.end(), {"--threads", "1"});
+        SCOPED_TRACE(args[1] + " " + c.args.back());
+        auto r = box.run(args);
+        EXPECT_EQ(r.code, 2) << r.all();
+        expectOneErrorLine(r, {c.needle});
+        EXPECT_EQ(r.err.find("no graph could run"), std::string::npos) << r.all();
+    }
+    expectInputsUntouched();
+}
+
+// --- Output names checked before frame 1 (item 12) ---------------------------------------
+
+TEST_F(CliNothingLost, FrameNumberInAFolderNameIsRefusedBeforeFrameOne) {
+    for (const std::string out : {"out/####/c.exr", "out/shot_%04d/c.exr"}) {
+        SCOPED_TRACE(out);
+        auto r = box.run(runArgs((graphDir() / "copy.json").string(),
+                                 {"--frames", "1-2", "--output", out}));
+        EXPECT_EQ(r.code, 2) << r.all();
+        expectOneErrorLine(r, {"'" + out + "'", "frame number in a folder name", "e.g. out/c."});
+        EXPECT_FALSE(fs::exists(work() / "out")) << "written before the refusal";
+    }
+}
+
+TEST_F(CliNothingLost, OutputNameTooLongForItsTemporaryIsRefusedBeforeFrameOne) {
+    // NAME_MAX 255: ".NAME.tmp-PID" adds 6 bytes and a pid of up to 10 digits.
+    const long nameMax = ::pathconf(work().c_str(), _PC_NAME_MAX);
+    ASSERT_GT(nameMax, 20);
+    auto named = [&](long bytes) {  // out/AAA...A.####.exr whose file names are `bytes` long
+        return "out/" + std::string(size_t(bytes) - 9, 'a') + ".####.exr";
+    };
+    for (long bytes : {nameMax - 10, nameMax - 15}) {
+        SCOPED_TRACE(bytes);
+        auto r = box.run(runArgs((graphDir() / "copy.json").string(),
+                                 {"--frames", "1-2", "--output", named(bytes)}));
+        EXPECT_EQ(r.code, 2) << r.all();
+        expectOneErrorLine(r, {"(output.path, frame 1)", std::to_string(bytes) + " bytes",
+                               "NAME_MAX", "use at most " + std::to_string(nameMax - 16)});
+        EXPECT_FALSE(fs::exists(work() / "out"));
+    }
+    auto ok = box.run(runArgs((graphDir() / "copy.json").string(),
+                              {"--frames", "1-2", "--output", named(nameMax - 16)}));
+    EXPECT_EQ(ok.code, 0) << ok.all();
+    EXPECT_EQ(std::distance(fs::directory_iterator(work() / "out"), fs::directory_iterator()), 2);
+}
+
+TEST_F(CliNothingLost, ResumeWritesAgainAPreviewLostOrCutShort) {
+    auto run = [&](std::vector<std::string> extra) {
+        extra.insert(extra.begin(), {"--frames", "1-3", "--output", "out/c.####.exr", "--set",
+                                     "output.preview=out/p.####.png"});
+        return box.run(runArgs((graphDir() / "copy.json").string(), extra));
+    };
+    auto first = run({});
+    ASSERT_EQ(first.code, 0) << first.all();
+    const fs::path out = work() / "out";
+    const std::string exr1 = readText(out / "c.0001.exr");
+    struct Case {
+        std::string damage, png;
+    };
+    for (const auto& c : std::vector<Case>{{"cut short", "p.0003.png"},
+                                           {"lost to a failed write", "p.0002.png"}}) {
+        SCOPED_TRACE(c.damage);
+        const std::string before = readText(out / c.png);
+        if (c.damage == "cut short")
+            writeText(out / c.png, before.substr(0, before.size() / 2));
+        else
+            fs::remove(out / c.png);
+        auto resumed = run({"--resume"});
+        EXPECT_EQ(resumed.code, 0) << resumed.all();
+        EXPECT_NE(resumed.err.find("preview out/" + c.png + " is missing or incomplete"),
+                  std::string::npos)
+            << resumed.all();
+        EXPECT_EQ(readText(out / c.png), before) << "the preview was not written again";
+    }
+    EXPECT_EQ(readText(out / "c.0001.exr"), exr1) << "--resume rewrote a complete frame";
+}
+
+// --- Memory (item 10) ---------------------------------------------------------------------
+
+/// Rewrites the data and display windows of the EXR at `path` to width x height, in place:
+/// the header of a damaged or forged file, its pixels left as they are.
+void forgeWindows(const fs::path& path, int32_t width, int32_t height) {
+    std::string bytes = readText(path);
+    for (const std::string name : {"dataWindow", "displayWindow"}) {
+        const std::string key = name + '\0' + "box2i" + '\0';
+        const auto at = bytes.find(key);
+        ASSERT_NE(at, std::string::npos) << name;
+        const int32_t box[4] = {0, 0, width - 1, height - 1};
+        bytes.replace(at + key.size() + 4, sizeof box, reinterpret_cast<const char*>(box),
+                      sizeof box);
+    }
+    writeText(path, bytes);
+}
+
+TEST_F(CliNothingLost, OutOfMemoryNamesTheFrameAndTheFileThatDeclaredItsSize) {
+    // 3200x3200 with the scene's 25 float channels declares under 1 GiB (not refused by the
+    // size rule); its planes do not fit in 150 MB of address space, the 32x24 frames do.
+    fs::create_directories(work() / "forged");
+    for (const char* f : {"frame_0001.exr", "frame_0002.exr"})
+        fs::copy_file(work() / "scene" / "noisy" / f, work() / "forged" / f);
+    forgeWindows(work() / "forged" / "frame_0002.exr", 3200, 3200);
+    auto r = box.runWithin(60,
+                           {"run", (graphDir() / "copy.json").string(), "--input",
+                            "forged/frame_####.exr", "--output", "out/c.####.exr", "--threads", "2"},
+                           150000);
+    EXPECT_EQ(r.code, 1) << r.all();
+    expectOneErrorLine(r, {"frame 2: out of memory", "3200x3200 frame (the previous was 32x24)",
+                           "forged/frame_0002.exr declares"});
+    EXPECT_TRUE(fs::exists(work() / "out" / "c.0001.exr")) << "frame 1 fits: it is written";
+}
+
 }  // namespace

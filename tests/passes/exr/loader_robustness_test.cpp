@@ -25,8 +25,10 @@
 #include <algorithm>
 #include <cstring>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <thread>
 
+#include "ExrInput.h"
 #include "ExrLoader.h"
 #include "exr_test_util.h"
 #include "kestrel/testing/PassHarness.h"
@@ -404,6 +406,118 @@ TEST(ExrLoaderRobustness, FifoSidecarsAreRefusedWithoutReading) {
         EXPECT_NE(msg.find(fifo.string()), std::string::npos) << msg;
         EXPECT_NE(msg.find("not a regular file"), std::string::npos) << msg;
     }
+}
+
+// Issue 40 item 10: a data window the file cannot hold (OpenImageIO refuses one declaring over
+// 10,000 times the file's bytes and over 1 GiB) was allocated in full before the pixels were
+// found missing. 20000x6000 float RGB declares 1.44 GB in a file of about 50 KB.
+TEST(ExrLoaderRobustness, DataWindowAbsurdForTheFileSizeIsRefusedBeforeAllocation) {
+    TempDir tmp("declared");
+    Channels ch = rgb(64, 64);
+    uint32_t s = 1;  // noise: the file keeps its ~49 KB, room for the forged offset table
+    for (auto& [n, v] : ch)
+        for (auto& x : v) x = float((s = s * 1664525u + 1013904223u) >> 8);
+    for (const char* f : {"f.0001.exr", "f.0002.exr"}) writeExr(tmp.path / f, box(0, 0, 63, 63), ch);
+    const fs::path forged = tmp.path / "f.0002.exr";
+    auto b = bytesOf(forged);
+    int32_t window[4] = {0, 0, 19999, 5999};
+    std::memcpy(&b[valueAt(b, "dataWindow", "box2i")], window, sizeof window);
+    writeBytes(forged, b);
+    const std::string msg =
+        errorOf([&] { kestrel::exr::ExrInput in(forged.string(), int64_t(1) << 27); });
+    EXPECT_NE(msg.find("data window 20000x6000 with 3 channels declares 1440000000 bytes of "
+                       "pixels, over 10,000 times the file's " +
+                       std::to_string(fs::file_size(forged)) + " bytes"),
+              std::string::npos)
+        << msg;
+    if (msg.empty()) return;  // the loader would allocate 1.44 GB: not tried without the check
+    const std::string frame = frameError((tmp.path / "f.####.exr").string(), 2);
+    EXPECT_NE(frame.find("frame 2: " + forged.string() + ": data window 20000x6000"),
+              std::string::npos)
+        << frame;
+    EXPECT_EQ(frameError((tmp.path / "f.####.exr").string(), 1), "");
+}
+
+// Issue 40 item 13: a camera.json matrix that places no camera (all zero; 1e308, which is inf as
+// a float; beyond the loader's 1e30 bound) was used silently. Refused naming file, frame, key.
+TEST(ExrLoaderRobustness, AbsurdCameraMatricesAreRefusedNamingFileAndFrame) {
+    TempDir dir("exr-camera-absurd");
+    const fs::path file = dir.path / "camera.json";
+    const std::string identity = "[[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]";
+    auto write = [&](const std::string& view, const std::string& viewProjection) {
+        std::ofstream(file) << R"({"resolution": [4, 4], "frames": [{"frame": 1, "view": )"
+                            << identity << R"(, "view_projection": )" << identity
+                            << R"(}, {"frame": 2, "view": )" << view
+                            << R"(, "view_projection": )" << viewProjection << "}]}";
+    };
+    struct Case {
+        std::string view, viewProjection, needle;
+    };
+    for (const auto& c : std::vector<Case>{
+             {"[[0,0,0,0],[0,0,0,0],[0,0,0,0],[0,0,0,0]]", identity, "view has no inverse"},
+             {"[[1e308,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]", identity, "view[0][0] is 1e+308"},
+             {"[[1,0,0,-1e31],[0,1,0,0],[0,0,1,0],[0,0,0,1]]", identity, "view[0][3] is -1e+31"},
+             {identity, "[[1,0,0,0],[0,1,0,0],[0,0,1e31,0],[0,0,0,1]]", "view_projection[2][2]"}}) {
+        SCOPED_TRACE(c.needle);
+        write(c.view, c.viewProjection);
+        const std::string msg = errorOf([&] { kestrel::exr::BlenderCameras cameras(file); });
+        for (const std::string& n : {file.string(), std::string("frame 2: "), c.needle})
+            EXPECT_NE(msg.find(n), std::string::npos) << "'" << n << "' not in: " << msg;
+    }
+    write(identity, identity);
+    EXPECT_EQ(errorOf([&] { kestrel::exr::BlenderCameras cameras(file); }), "");
+    // Every shipped render's camera.json still loads.
+    for (const char* name : {"blender-sample-room", "blender-showroom", "blender-street",
+                             "blender-street-defaults"}) {
+        const std::string data = sharedData(name);
+        if (data.empty()) continue;
+        EXPECT_EQ(errorOf([&] { kestrel::exr::BlenderCameras cameras(data + "/camera.json"); }),
+                  "");
+    }
+}
+
+// Issue 40 item 13: a camera.json without an entry for a rendered frame gave that frame no
+// camera matrices, with one warning. Refused before the run, naming file and frame.
+TEST(ExrLoaderRobustness, CameraFileWithoutARenderedFrameIsRefusedBeforeTheRun) {
+    const std::string data = sharedData("blender-sample-room");
+    if (data.empty()) GTEST_SKIP() << "../shared/data/blender-sample-room not present";
+    TempDir dir("exr-camera-gap");
+    fs::create_directory(dir.path / "noisy");
+    for (const char* f : {"frame_0001.exr", "frame_0002.exr", "frame_0003.exr"})
+        fs::create_symlink(fs::path(data) / "noisy" / f, dir.path / "noisy" / f);
+    // The shipped camera.json without its frame 3.
+    std::ifstream in(data + "/camera.json");
+    const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+    auto doc = nlohmann::json::parse(text);
+    auto& frames = doc["frames"];
+    frames.erase(std::remove_if(frames.begin(), frames.end(),
+                                [](const nlohmann::json& f) { return f["frame"] == 3; }),
+                 frames.end());
+    const fs::path camera = dir.path / "camera.json";
+    std::ofstream(camera) << doc.dump();
+
+    auto h = PassHarness::make<ExrLoader>(
+        {1, 1}, {{"path", (dir.path / "noisy" / "frame_####.exr").string()}});
+    RecordingResolve rc(1);
+    h.pass().resolve(rc);
+    kestrel::RunContext run;
+    run.firstFrame = 1;
+    run.lastFrame = 3;
+    const std::string msg = errorOf([&] { h.pass().beginRun(run); });
+    EXPECT_NE(msg.find("camera file " + camera.string() + " lists no frame 3"), std::string::npos)
+        << msg;
+    run.lastFrame = 2;  // the frames it lists run
+    EXPECT_EQ(errorOf([&] { h.pass().beginRun(run); }), "");
+    h.ctx.frameNumber = 3;  // a frame past the run's checked range still fails, as a frame
+    std::string frameMsg;
+    try {
+        h.run();
+    } catch (const kestrel::FrameError& e) {
+        frameMsg = e.what();
+    }
+    EXPECT_NE(frameMsg.find("frame 3: camera file " + camera.string() + " lists no frame 3"),
+              std::string::npos)
+        << frameMsg;
 }
 
 // Blender's single-layer "OpenEXR" format holds Combined only (R, G, B, A): every G-buffer

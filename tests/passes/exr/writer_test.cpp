@@ -5,11 +5,14 @@
 #include <OpenEXR/ImfStringAttribute.h>
 #include <gtest/gtest.h>
 
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <limits>
 
 #include "ExrWriter.h"
+#include "ZipWriter.h"
 #include "exr_test_util.h"
 #include "kestrel/testing/PassHarness.h"
 
@@ -121,6 +124,49 @@ TEST(ExrWriter, FailedWriteLeavesNoPartialFile) {
     EXPECT_THROW(h.run(), kestrel::Error);
     EXPECT_EQ(listing(tmp.path), (std::vector<std::string>{"out.0001.exr"}));
     EXPECT_TRUE(fs::is_directory(tmp.path / "out.0001.exr"));
+}
+
+// Issue 40 item 12: a failed write said "cannot create the file" or "writing failed (disk
+// full?)" without the system's reason; now errno's words, for the EXR and its preview.
+TEST(ExrWriter, FailedWriteSaysTheSystemsReason) {
+    TempDir tmp("wreason");
+    Image img(4, 2, Format::Float3);
+    auto h = PassHarness::make<ExrWriter>(
+        {4, 2}, {{"path", (tmp.path / "exr" / "out.####.exr").string()},
+                 {"preview", (tmp.path / "png" / "prev.####.png").string()}});
+    beginRun(h, 1);
+    h.bind("color", img);
+    h.ctx.frameNumber = 1;
+    auto messageOf = [&] {
+        try {
+            h.run();
+        } catch (const kestrel::Error& e) {
+            return std::string(e.what());
+        }
+        return std::string();
+    };
+    const std::string noFolder = std::strerror(ENOENT);
+    fs::remove_all(tmp.path / "exr");  // the folder went away after the run started
+    EXPECT_NE(messageOf().find("cannot create the file: " + noFolder), std::string::npos)
+        << messageOf();
+    fs::create_directories(tmp.path / "exr");
+    fs::remove_all(tmp.path / "png");
+    const std::string png = messageOf();
+    EXPECT_NE(png.find("cannot create PNG "), std::string::npos) << png;
+    EXPECT_NE(png.find(": " + noFolder), std::string::npos) << png;
+    // A write that fails after the open: the disk is full.
+    if (!fs::exists("/dev/full")) GTEST_SKIP() << "no /dev/full";
+    Imf::Header header(4, 2);
+    header.compression() = Imf::ZIP_COMPRESSION;
+    header.channels().insert("R", Imf::Channel(Imf::FLOAT));
+    std::vector<float> r(8, 0.5f);
+    try {
+        kestrel::exr::writeZipScanlines("/dev/full", header, {r.data()}, 1, 4);
+        FAIL() << "no error writing to /dev/full";
+    } catch (const std::exception& e) {
+        EXPECT_NE(std::string(e.what()).find(std::strerror(ENOSPC)), std::string::npos)
+            << e.what();
+    }
 }
 
 TEST(ExrWriter, UnwritableDirectoryFailsInBeginRun) {
