@@ -19,12 +19,13 @@ inline const kestrel::Registry& builtPlugins() {
     return loaded.registry;
 }
 
-/// Replaces the shipped graph's writer ("output") by a marked output, so results stay float32 in
-/// memory; returns the marked "pass.port".
+/// Replaces the shipped graph's writer ("output") by a marked output of what feeds its colour,
+/// so results stay float32 in memory; returns the marked "pass.port". (Its other inputs, the
+/// input's alpha, go with it.)
 inline std::string markWriterInput(kestrel::GraphDesc& g) {
     std::string marked;
     for (const auto& e : g.edges)
-        if (e.toPass == "output") marked = e.fromPass + "." + e.fromPort;
+        if (e.toPass == "output" && e.toPort == "color") marked = e.fromPass + "." + e.fromPort;
     std::erase_if(g.edges, [](const kestrel::EdgeDesc& e) { return e.toPass == "output"; });
     std::erase_if(g.passes, [](const kestrel::PassNode& p) { return p.name == "output"; });
     g.outputs.push_back(marked);
