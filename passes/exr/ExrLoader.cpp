@@ -1181,11 +1181,12 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
     if (!logged_) {
         std::string list;
         for (const auto& c : channelsRead_) list += (list.empty() ? "" : ", ") + c;
-        spdlog::info(
-            "ExrLoader: reading {} channels per frame ({:.2f} MB decoded from {:.2f} MB of "
-            "files): {}",
-            channelsRead_.size(), double(channelsRead_.size() * N * 4) / 1e6,
-            double(fileBytes) / 1e6, list);
+        // The count at the default level, the names with -v (38 names were ~900 characters).
+        spdlog::info("ExrLoader: reading {} channels per frame ({:.2f} MB decoded from {:.2f} MB "
+                     "of files)",
+                     channelsRead_.size(), double(channelsRead_.size() * N * 4) / 1e6,
+                     double(fileBytes) / 1e6);
+        spdlog::debug("ExrLoader: channels read: {}", list);
         logged_ = true;
     }
     if (prefetch_) startPrefetch(frame_ + step_, fills);

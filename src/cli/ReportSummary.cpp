@@ -15,6 +15,34 @@ std::string joined(const std::vector<std::string>& items, const char* sep, size_
     return s;
 }
 
+/// One pass's messages as a person reads them: plain mappings ("depth = ViewLayer.Depth.Z")
+/// counted, not listed; mappings that carry a reason ("jitteredAlbedo = ViewLayer.DiffCol:
+/// anti-aliased render assumed...") grouped by that reason, one line per reason; the rest as
+/// they are. A Blender render's loader note was ~1,100 characters of mappings on one line.
+std::string passLine(const std::vector<std::string>& messages) {
+    static const std::regex plain(R"(^[A-Za-z0-9_]+ = [^:;()]*$)");
+    static const std::regex reasoned(R"(^([A-Za-z0-9_]+) = [^:;]*: (.*)$)");
+    std::vector<std::string> kept, reasons;
+    std::map<std::string, std::vector<std::string>> outputsByReason;
+    size_t mapped = 0;
+    for (const auto& m : messages) {
+        std::smatch g;
+        if (std::regex_match(m, plain)) {
+            ++mapped;
+        } else if (std::regex_match(m, g, reasoned)) {
+            if (!outputsByReason.count(g[2])) reasons.push_back(g[2]);
+            outputsByReason[g[2]].push_back(g[1]);
+        } else {
+            kept.push_back(m);
+        }
+    }
+    for (const auto& r : reasons) kept.push_back(joined(outputsByReason[r], ", ", 8) + ": " + r);
+    if (mapped)
+        kept.push_back(std::to_string(mapped) + " more output" + (mapped > 1 ? "s" : "") +
+                       " read as named (-v lists them)");
+    return joined(kept, "; ", 64);
+}
+
 }  // namespace
 
 std::vector<std::string> groupNotes(const std::vector<std::string>& notes) {
@@ -39,7 +67,7 @@ std::vector<std::string> groupNotes(const std::vector<std::string>& notes) {
         byPass[ps[0]].push_back(m);
     }
     std::vector<std::string> lines;
-    for (const auto& p : passes) lines.push_back(p + ": " + joined(byPass[p], "; ", 64));
+    for (const auto& p : passes) lines.push_back(p + ": " + passLine(byPass[p]));
     lines.insert(lines.end(), shared.begin(), shared.end());
     return lines;
 }

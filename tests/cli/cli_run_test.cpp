@@ -200,6 +200,33 @@ TEST_F(CliRun, DefaultLogIsShortAndVerboseHasEveryDetail) {
     EXPECT_NE(verbose.err.find("pruned diffuse.demodulate: "), std::string::npos) << verbose.err;
 }
 
+// A render with many passes (the street: the split, the light passes) logs short lines: the
+// loader's plain output mappings are counted and its channel names listed only with -v (the
+// first log line of a Blender render was ~1,100 characters, the channel list ~900).
+TEST_F(CliRun, DefaultLogLinesStayShortOnARenderWithManyPasses) {
+    ASSERT_EQ(box.run({"scenegen", "--scene", "street", "--out", "street", "--width", "48",
+                       "--height", "32", "--frames", "1"})
+                  .code,
+              0);
+    auto runSvgf = [&](std::vector<std::string> extra) {
+        std::vector<std::string> args = {
+            "run", std::string(KESTREL_SOURCE_DIR) + "/graphs/svgf.json", "--input",
+            "street/noisy/frame_####.exr", "--output", "out/t.####.exr"};
+        args.insert(args.end(), extra.begin(), extra.end());
+        return box.run(args);
+    };
+    const CliResult quiet = runSvgf({});
+    ASSERT_EQ(quiet.code, 0) << quiet.all();
+    std::istringstream lines(quiet.err);
+    for (std::string l; std::getline(lines, l);) EXPECT_LE(l.size(), 300u) << l;
+    EXPECT_NE(quiet.err.find("more outputs read as named (-v lists them)"), std::string::npos)
+        << quiet.err;
+    const CliResult verbose = runSvgf({"-v"});
+    ASSERT_EQ(verbose.code, 0) << verbose.all();
+    EXPECT_NE(verbose.err.find("ExrLoader: channels read: "), std::string::npos) << verbose.err;
+    EXPECT_NE(verbose.err.find("depth = depth.Z"), std::string::npos) << verbose.err;
+}
+
 // --dump writes every frame of each matching resource as a float EXR (pass.port.####.exr under
 // --dump-dir) and changes nothing else: the output is the same to the bit with every resource
 // dumped (each stays alive until its writer has it, so no in-place output may overwrite it),
