@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -418,6 +419,33 @@ std::vector<int64_t> ExrLoader::availableFrames() const {
 
 namespace {
 
+/// Whether folder `dir` (ending in '/') holds a GAMES202 beauty_N.exr file.
+bool holdsGames202Beauty(const std::string& dir) {
+    std::error_code ec;
+    for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+        const std::string name = it->path().filename().string();
+        if (name.rfind("beauty_", 0) == 0 && it->path().extension() == ".exr") return true;
+    }
+    return false;
+}
+
+/// A frame pattern for the EXR files in folder `dir` (ending in '/'): the first one's name with
+/// its last run of digits as #### ("dir/frame_0001.exr" -> "dir/frame_####.exr"), else
+/// dir/frame_####.exr.
+std::string suggestedPattern(const std::string& dir) {
+    std::error_code ec;
+    std::vector<std::string> names;
+    for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec))
+        if (it->path().extension() == ".exr") names.push_back(it->path().filename().string());
+    if (names.empty()) return dir + "frame_####.exr (it holds no .exr file)";
+    std::string name = *std::min_element(names.begin(), names.end());
+    const size_t end = name.find_last_of("0123456789");
+    if (end == std::string::npos) return dir + name;
+    size_t begin = end;
+    while (begin > 0 && std::isdigit(static_cast<unsigned char>(name[begin - 1]))) --begin;
+    return dir + name.substr(0, begin) + std::string(end + 1 - begin, '#') + name.substr(end + 1);
+}
+
 /// The view layer to read: `wanted`, else the only one. Several and none chosen is refused (a
 /// silent pick would denoise the wrong layer). nullopt: no Blender layer at all.
 std::optional<std::string> chooseLayer(const std::vector<std::string>& layers,
@@ -452,17 +480,23 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
     std::string pattern = path_;
     std::error_code ec;
     bool games202 = layoutParam_ == "games202";
-    if (fs::is_directory(pattern, ec)) {
+    const bool folder = fs::is_directory(pattern, ec);
+    if (folder) {
         std::string dir = pattern.back() == '/' ? pattern : pattern + "/";
-        if (layoutParam_ != "auto" && layoutParam_ != "games202")
-            throw Error("path " + path_ + " is a folder: give a frame pattern such as " + dir +
-                        "frame_####.exr");
+        // Only GAMES202's layout is a folder of files per frame; any other folder is the
+        // user's slip for a pattern, said with the pattern its files suggest.
+        if ((layoutParam_ != "auto" && layoutParam_ != "games202") ||
+            (layoutParam_ == "auto" && !holdsGames202Beauty(dir)))
+            throw Error("path " + path_ + " is a folder" +
+                        (layoutParam_ == "auto" ? " without GAMES202's beauty_N.exr files" : "") +
+                        ": give a frame pattern such as " + suggestedPattern(dir));
         pattern = dir + "beauty_%d.exr";
         games202 = true;
     }
     pattern_ = std::make_unique<FramePattern>(pattern);
     std::string file = pattern.substr(parentDir(pattern).size());
-    if (layoutParam_ == "auto" && file.rfind("beauty", 0) == 0) games202 = true;
+    const bool namedLikeBeauty = layoutParam_ == "auto" && !folder && file.rfind("beauty", 0) == 0;
+    if (namedLikeBeauty) games202 = true;
     if (games202) {
         if (file.rfind("beauty", 0) != 0)
             throw Error("layout games202: path " + path_ +
@@ -483,6 +517,16 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
              std::to_string(found.front()));
         first = found.front();
         firstPath = pattern_->expand(first);
+    }
+
+    // A file merely named beauty.####.exr is a multi-channel frame unless GAMES202's other
+    // buffers lie beside it (its normal_ or depth_ file for the same frame).
+    if (namedLikeBeauty &&
+        !fs::exists(FramePattern(games202Dir_ + "normal" + games202Tail_).expand(first), ec) &&
+        !fs::exists(FramePattern(games202Dir_ + "depth" + games202Tail_).expand(first), ec)) {
+        games202 = false;
+        note("named like GAMES202's beauty files, but no normal or depth file lies beside " +
+             firstPath + ": one multi-channel file per frame");
     }
 
     ChannelSets sets;
@@ -1182,10 +1226,11 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
         std::string list;
         for (const auto& c : channelsRead_) list += (list.empty() ? "" : ", ") + c;
         // The count at the default level, the names with -v (38 names were ~900 characters).
-        spdlog::info("ExrLoader: reading {} channels per frame ({:.2f} MB decoded from {:.2f} MB "
-                     "of files)",
-                     channelsRead_.size(), double(channelsRead_.size() * N * 4) / 1e6,
-                     double(fileBytes) / 1e6);
+        spdlog::info(
+            "ExrLoader: reading {} channels per frame ({:.2f} MB decoded from {:.2f} MB "
+            "of files)",
+            channelsRead_.size(), double(channelsRead_.size() * N * 4) / 1e6,
+            double(fileBytes) / 1e6);
         spdlog::debug("ExrLoader: channels read: {}", list);
         logged_ = true;
     }

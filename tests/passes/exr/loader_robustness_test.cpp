@@ -417,7 +417,8 @@ TEST(ExrLoaderRobustness, DataWindowAbsurdForTheFileSizeIsRefusedBeforeAllocatio
     uint32_t s = 1;  // noise: the file keeps its ~49 KB, room for the forged offset table
     for (auto& [n, v] : ch)
         for (auto& x : v) x = float((s = s * 1664525u + 1013904223u) >> 8);
-    for (const char* f : {"f.0001.exr", "f.0002.exr"}) writeExr(tmp.path / f, box(0, 0, 63, 63), ch);
+    for (const char* f : {"f.0001.exr", "f.0002.exr"})
+        writeExr(tmp.path / f, box(0, 0, 63, 63), ch);
     const fs::path forged = tmp.path / "f.0002.exr";
     auto b = bytesOf(forged);
     int32_t window[4] = {0, 0, 19999, 5999};
@@ -447,8 +448,8 @@ TEST(ExrLoaderRobustness, AbsurdCameraMatricesAreRefusedNamingFileAndFrame) {
     auto write = [&](const std::string& view, const std::string& viewProjection) {
         std::ofstream(file) << R"({"resolution": [4, 4], "frames": [{"frame": 1, "view": )"
                             << identity << R"(, "view_projection": )" << identity
-                            << R"(}, {"frame": 2, "view": )" << view
-                            << R"(, "view_projection": )" << viewProjection << "}]}";
+                            << R"(}, {"frame": 2, "view": )" << view << R"(, "view_projection": )"
+                            << viewProjection << "}]}";
     };
     struct Case {
         std::string view, viewProjection, needle;
@@ -467,8 +468,8 @@ TEST(ExrLoaderRobustness, AbsurdCameraMatricesAreRefusedNamingFileAndFrame) {
     write(identity, identity);
     EXPECT_EQ(errorOf([&] { kestrel::exr::BlenderCameras cameras(file); }), "");
     // Every shipped render's camera.json still loads.
-    for (const char* name : {"blender-sample-room", "blender-showroom", "blender-street",
-                             "blender-street-defaults"}) {
+    for (const char* name :
+         {"blender-sample-room", "blender-showroom", "blender-street", "blender-street-defaults"}) {
         const std::string data = sharedData(name);
         if (data.empty()) continue;
         EXPECT_EQ(errorOf([&] { kestrel::exr::BlenderCameras cameras(data + "/camera.json"); }),
@@ -620,4 +621,34 @@ TEST(ExrLoaderRobustness, BlenderCombinedAlphaIsTheAlphaOutput) {
     h.run();
     EXPECT_EQ(h.out("alpha").at(0, 0, 0), 0.f);
     EXPECT_EQ(h.out("alpha").at(0, 1, 0), 0.5f);
+}
+
+// A file merely named beauty.####.exr is one multi-channel frame; GAMES202's layout needs its
+// other buffers (normal_, depth_) beside it. It used to be taken for the homework's layout.
+TEST(ExrLoaderRobustness, FileNamedBeautyIsAFrameUnlessGames202BuffersLieBesideIt) {
+    TempDir tmp("beautyname");
+    Channels ch = rgb(2, 2);
+    ch["Z"] = {1.f, 2.f, 3.f, 4.f};
+    writeExr(tmp.path / "beauty.0001.exr", box(0, 0, 1, 1), ch);
+    auto h =
+        PassHarness::make<ExrLoader>({2, 2}, {{"path", (tmp.path / "beauty.####.exr").string()}});
+    RecordingResolve rc(1);
+    h.pass().resolve(rc);
+    EXPECT_EQ(rc.absent.count("color"), 0u) << rc.absent["color"];
+    EXPECT_EQ(rc.absent.count("depth"), 0u) << rc.absent["depth"];
+}
+
+// A folder is GAMES202's layout only when it holds beauty_N.exr; any other folder is refused
+// with the frame pattern its files suggest.
+TEST(ExrLoaderRobustness, FolderWithoutGames202FilesSuggestsAPattern) {
+    TempDir tmp("folderinput");
+    writeExr(tmp.path / "shot_0007.exr", box(0, 0, 1, 1), rgb(2, 2));
+    auto h = PassHarness::make<ExrLoader>({2, 2}, {{"path", tmp.path.string()}});
+    RecordingResolve rc(1);
+    const std::string msg = errorOf([&] { h.pass().resolve(rc); });
+    EXPECT_NE(msg.find("is a folder without GAMES202's beauty_N.exr files: give a frame pattern "
+                       "such as " +
+                       (tmp.path / "shot_####.exr").string()),
+              std::string::npos)
+        << msg;
 }
