@@ -57,16 +57,18 @@ TEST(HistoryFix, PixelWithAHistoryPassesUnchanged) {
 }
 
 // Between no history and `frames` (4) the pixel keeps a share of its own colour that grows
-// with its history: (hl - 1) / 3 of it at hl = 2 and 3, the rest filled. A step (all fill up to
-// 2.5 frames, none after) blurred two-frame-old pixels as much as new ones (frame 2 of every
-// zoo scene lost 0.3 dB) and left a three-frame-old black pixel black.
+// with its history, (hl - 1) / 3 of it at hl = 2 and 3, the rest filled from the 3x3 binomial
+// footprint (the 5x5 is for pixels with no history). A step (all fill up to 2.5 frames, none
+// after) blurred two-frame-old pixels as much as new ones (frame 2 of every zoo scene lost
+// 0.3 dB) and left a three-frame-old black pixel black.
 TEST(HistoryFix, OwnColourShareGrowsWithTheHistory) {
     for (float hl : {2.f, 3.f}) {
         const float own = (hl - 1.f) / 3.f;
+        // The fill: 8 neighbours (binomial weights summing to 3/4, history 8) of colour 1
+        // against the black centre (weight 1/4, history hl).
+        const float neighbours = 0.75f * 8.f, fill = neighbours / (neighbours + 0.25f * hl);
         const float got = run(wall(hl, 8.f)).out("color").at(0, 3, 3);
-        // The fill is close to the neighbours' 1 (the centre weighs hl against 24 x 8).
-        EXPECT_NEAR(got, 1.f - own, 0.03f) << "historyLength " << hl;
-        EXPECT_LT(got, 1.f - own + 1e-6f) << "historyLength " << hl;
+        EXPECT_NEAR(got, (1.f - own) * fill, 1e-4f) << "historyLength " << hl;
     }
 }
 
