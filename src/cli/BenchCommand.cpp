@@ -312,6 +312,7 @@ void runSetting(BenchRun& b, const Setting& s, Prepared& p) {
     Executor exec(*p.compiled, parallel, info);
     eval::BenchRow row;
     row.name = s.name;
+    row.inputOnly = s.inputOnly;
     BenchFrames frames(b, s, p, row);
     SequenceOptions so;
     so.frames = b.frames;

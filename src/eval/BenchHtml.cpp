@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <optional>
 #include <sstream>
 
 #include "ReportUtil.h"
@@ -47,6 +48,25 @@ struct Axes {
     double svgWidth() const { return left + width + 20; }
     double svgHeight() const { return top + height + 50; }
 
+    // Grid lines and labels at 1, 2 and 5 (or 1..9) times the decades when the range is under
+    // two decades, so a tight range still has ticks; at whole decades otherwise.
+    void drawLogTicks(std::ostringstream& os) const {
+        std::vector<double> mantissas = {1};
+        if (ymax - ymin < 2) mantissas = {1, 2, 5};
+        if (ymax - ymin < 0.5) mantissas = {1, 2, 3, 4, 5, 6, 7, 8, 9};
+        for (int d = int(std::floor(ymin)); d <= int(std::ceil(ymax)); ++d)
+            for (double m : mantissas) {
+                const double v = std::log10(m) + d;
+                if (v < ymin - 1e-9 || v > ymax + 1e-9) continue;
+                const double y = top + (ymax - v) / (ymax - ymin) * height;
+                os << "<line x1='" << left << "' x2='" << left + width << "' y1='" << y
+                   << "' y2='" << y << "' stroke='#ddd'/><text x='" << left - 6 << "' y='"
+                   << y + 4 << "' text-anchor='end'>"
+                   << (m == 1 ? "1e" + std::to_string(d) : num(m * std::pow(10.0, d), "%.3g"))
+                   << "</text>\n";
+            }
+    }
+
     // Frame, ticks and axis titles.
     void draw(std::ostringstream& os, const std::string& xTitle, const std::string& yTitle,
               bool xTicks = true) const {
@@ -61,14 +81,7 @@ struct Axes {
                    << "' y='" << top + height + 18 << "' text-anchor='middle'>"
                    << num(x, step < 1 ? "%.2g" : "%.0f") << "</text>\n";
         }
-        if (logY) {
-            for (int d = int(std::ceil(ymin - 1e-9)); d <= int(std::floor(ymax + 1e-9)); ++d) {
-                const double y = top + (ymax - d) / (ymax - ymin) * height;
-                os << "<line x1='" << left << "' x2='" << left + width << "' y1='" << y << "' y2='"
-                   << y << "' stroke='#ddd'/><text x='" << left - 6 << "' y='" << y + 4
-                   << "' text-anchor='end'>1e" << d << "</text>\n";
-            }
-        }
+        if (logY) drawLogTicks(os);
         os << "<text x='" << left + width / 2 << "' y='" << top + height + 38
            << "' text-anchor='middle'>" << escapeXml(xTitle) << "</text>\n";
         os << "<text transform='translate(16," << top + height / 2
@@ -76,12 +89,16 @@ struct Axes {
     }
 };
 
-// Log10 range covering [lo, hi] on whole decades (at least one decade).
+// Log10 range covering [lo, hi]: on whole decades when they span two or more, else the data's
+// own range with a margin (settings of one sweep often differ by a few percent: whole decades
+// would squeeze them onto a few pixels).
 void logRange(double lo, double hi, Axes& a) {
     lo = std::max(lo, 1e-12), hi = std::max(hi, lo);
     a.ymin = std::floor(std::log10(lo));
     a.ymax = std::ceil(std::log10(hi));
-    if (a.ymax <= a.ymin) a.ymax = a.ymin + 1;
+    if (a.ymax - a.ymin >= 2) return;
+    const double l = std::log10(lo), h = std::log10(hi), margin = std::max(0.1 * (h - l), 0.02);
+    a.ymin = l - margin, a.ymax = h + margin;
 }
 
 std::string svgOpen(const Axes& a) {
@@ -90,39 +107,121 @@ std::string svgOpen(const Axes& a) {
            "' font-family='sans-serif' font-size='11'>\n";
 }
 
-// Mean relMSE (log) versus ms per frame; the Pareto front as a dashed staircase.
+// A label's box in SVG units; text width estimated from the character count (11 px sans-serif
+// averages under 6.5 px a character; the browser test checks the real boxes).
+struct Box {
+    double x0, y0, x1, y1;
+    bool overlaps(const Box& o) const { return x0 < o.x1 && o.x0 < x1 && y0 < o.y1 && o.y0 < y1; }
+    bool inside(const Box& o) const { return x0 >= o.x0 && x1 <= o.x1 && y0 >= o.y0 && y1 <= o.y1; }
+};
+double textWidth(const std::string& s) { return 6.5 * double(s.size()) + 2; }
+
+// Places labels next to their points without overlapping each other or any point: tries eight
+// positions around the point; a label that fits nowhere is replaced by its number (also tried
+// around the point), and the number is explained in a legend under the plot.
+class LabelPlacer {
+public:
+    explicit LabelPlacer(Box area) : area_(area) {}
+    void addObstacle(Box b) { taken_.push_back(b); }
+
+    /// The text's anchor (x, baseline y) at one of the free positions, or nothing.
+    std::optional<std::pair<double, double>> place(double px, double py, const std::string& text) {
+        const double w = textWidth(text), h = 13, d = 7;
+        const std::pair<double, double> offsets[] = {{d, -d - h},      {d, d},        {-d - w, -d - h},
+                                                     {-d - w, d},      {d, -h / 2},   {-d - w, -h / 2},
+                                                     {-w / 2, -d - h}, {-w / 2, d}};
+        for (const auto& [dx, dy] : offsets) {
+            const Box b{px + dx, py + dy, px + dx + w, py + dy + h};
+            if (!b.inside(area_)) continue;
+            if (std::any_of(taken_.begin(), taken_.end(), [&](const Box& t) { return t.overlaps(b); }))
+                continue;
+            taken_.push_back(b);
+            return std::make_pair(b.x0 + 1, b.y1 - 3);
+        }
+        return std::nullopt;
+    }
+
+private:
+    Box area_;
+    std::vector<Box> taken_;
+};
+
+std::string psnrText(const BenchRow& row) { return num(row.mean().psnr, "%.1f") + " dB"; }
+
+// Mean relMSE (log) versus ms per frame; the Pareto front as a dashed staircase. The axes cover
+// the filtered settings only: the unfiltered input, usually orders of magnitude worse, is an
+// arrow at the top edge saying where it is.
 std::string errorVersusTime(const BenchReport& r, const std::vector<size_t>& pareto) {
+    std::vector<size_t> onAxis, offScale;
+    for (size_t i = 0; i < r.rows.size(); ++i) (r.rows[i].inputOnly ? offScale : onAxis).push_back(i);
+    if (onAxis.empty()) std::swap(onAxis, offScale);  // nothing else: the input is the plot
     Axes a;
+    a.top = 40;  // room for the off-scale arrows and their labels
     double tMax = 0, eLo = 1e300, eHi = 0;
     std::vector<double> err;
-    for (const BenchRow& row : r.rows) {
-        err.push_back(row.mean().relMse);
-        tMax = std::max(tMax, row.msPerFrame);
-        eLo = std::min(eLo, err.back()), eHi = std::max(eHi, err.back());
+    for (const BenchRow& row : r.rows) err.push_back(row.mean().relMse);
+    for (size_t i : onAxis) {
+        tMax = std::max(tMax, r.rows[i].msPerFrame);
+        eLo = std::min(eLo, err[i]), eHi = std::max(eHi, err[i]);
     }
     a.xmax = tMax > 0 ? tMax * 1.15 : 1;
     a.logY = true;
     logRange(eLo, eHi, a);
-    std::ostringstream os;
-    os << svgOpen(a);
-    a.draw(os, "ms per frame", "relMSE (log)");
-    if (!pareto.empty()) {
-        os << "<path d='M" << a.px(r.rows[pareto[0]].msPerFrame) << ',' << a.py(err[pareto[0]]);
-        for (size_t k = 1; k < pareto.size(); ++k)
-            os << " H" << a.px(r.rows[pareto[k]].msPerFrame) << " V" << a.py(err[pareto[k]]);
-        os << "' fill='none' stroke='#222' stroke-dasharray='5,4'><title>Pareto "
-              "front</title></path>\n";
+    LabelPlacer labels({a.left, 0, a.left + a.width, a.top + a.height});
+    std::ostringstream os, marks, legend;
+    std::vector<std::string> legendLines;
+    auto label = [&](double x, double y, const std::string& text, size_t i) {
+        if (auto at = labels.place(x, y, text)) {
+            marks << "<text class='lbl' x='" << at->first << "' y='" << at->second << "'>"
+                  << escapeXml(text) << "</text>\n";
+            return;
+        }
+        const std::string n = std::to_string(legendLines.size() + 1);
+        legendLines.push_back(n + ": " + text);
+        if (auto at = labels.place(x, y, n))
+            marks << "<text class='lbl' x='" << at->first << "' y='" << at->second << "' fill='"
+                  << colour(i) << "'>" << n << "</text>\n";
+    };
+    std::vector<size_t> front;  // the staircase joins the front's on-axis rows only
+    for (size_t i : pareto)
+        if (std::find(onAxis.begin(), onAxis.end(), i) != onAxis.end()) front.push_back(i);
+    if (!front.empty()) {
+        marks << "<path d='M" << a.px(r.rows[front[0]].msPerFrame) << ',' << a.py(err[front[0]]);
+        for (size_t k = 1; k < front.size(); ++k)
+            marks << " H" << a.px(r.rows[front[k]].msPerFrame) << " V" << a.py(err[front[k]]);
+        marks << "' fill='none' stroke='#222' stroke-dasharray='5,4'><title>Pareto "
+                 "front</title></path>\n";
     }
-    for (size_t i = 0; i < r.rows.size(); ++i) {
-        const bool front = std::find(pareto.begin(), pareto.end(), i) != pareto.end();
+    for (size_t i : onAxis) labels.addObstacle({a.px(r.rows[i].msPerFrame) - 6, a.py(err[i]) - 6,
+                                                a.px(r.rows[i].msPerFrame) + 6, a.py(err[i]) + 6});
+    for (size_t i : offScale) {  // an up arrow on the top edge
+        const double x = std::min(a.px(r.rows[i].msPerFrame), a.left + a.width - 6);
+        labels.addObstacle({x - 6, a.top - 14, x + 6, a.top});
+        marks << "<path d='M" << x << ',' << a.top - 14 << " l-6,10 h12 z' fill='" << colour(i)
+              << "'><title>" << escapeXml(r.rows[i].name) << ": " << num(err[i], "%.4g")
+              << " relMSE, above this axis</title></path>\n";
+    }
+    for (size_t i : offScale)
+        label(std::min(a.px(r.rows[i].msPerFrame), a.left + a.width - 6), a.top - 8,
+              r.rows[i].name + ": " + psnrText(r.rows[i]) + ", off scale", i);
+    for (size_t i : onAxis) {
+        const bool onFront = std::find(pareto.begin(), pareto.end(), i) != pareto.end();
         const double x = a.px(r.rows[i].msPerFrame), y = a.py(err[i]);
-        os << "<circle cx='" << x << "' cy='" << y << "' r='" << (front ? 6 : 4.5) << "' fill='"
-           << colour(i) << "'" << (front ? " stroke='#000' stroke-width='2'" : "") << "><title>"
-           << escapeXml(r.rows[i].name) << ": " << num(err[i], "%.4g") << " relMSE, "
-           << num(r.rows[i].msPerFrame, "%.2f") << " ms</title></circle>\n";
-        os << "<text x='" << x + 8 << "' y='" << y - 6 << "'>" << escapeXml(r.rows[i].name)
-           << "</text>\n";
+        marks << "<circle cx='" << x << "' cy='" << y << "' r='" << (onFront ? 6 : 4.5)
+              << "' fill='" << colour(i) << "'"
+              << (onFront ? " stroke='#000' stroke-width='2'" : "") << "><title>"
+              << escapeXml(r.rows[i].name) << ": " << num(err[i], "%.4g") << " relMSE, "
+              << num(r.rows[i].msPerFrame, "%.2f") << " ms</title></circle>\n";
+        label(x, y, r.rows[i].name, i);
     }
+    Axes tall = a;
+    tall.height += 16.0 * double(legendLines.size()) + (legendLines.empty() ? 0 : 4);
+    os << svgOpen(tall);
+    a.draw(os, "ms per frame", "relMSE (log)");
+    os << marks.str();
+    for (size_t k = 0; k < legendLines.size(); ++k)
+        os << "<text class='lbl' x='" << a.left << "' y='" << a.top + a.height + 62 + 16.0 * double(k)
+           << "'>" << escapeXml(legendLines[k]) << "</text>\n";
     os << "</svg>\n";
     return os.str();
 }

@@ -139,3 +139,65 @@ TEST(BenchReport, WritesFilesWithPlotsAndCrops) {
     EXPECT_NE(md.find("| svgf | 0.02 | 30.00 | 0.9000 | 0.010000 | 0 | 12.00 | * |"), std::string::npos)
         << md;
 }
+
+namespace {
+
+struct Label {
+    double x0, y0, x1, y1;
+    std::string text;
+};
+// The labels (class 'lbl') of the first SVG in `html`, boxes estimated as the writer does for
+// 11 px sans-serif (the browser test, tests/cli/report_browser_test.sh, measures real ones).
+std::vector<Label> firstPlotLabels(const std::string& html) {
+    const std::string svg = html.substr(html.find("<svg"), html.find("</svg>") - html.find("<svg"));
+    std::vector<Label> out;
+    for (size_t p = svg.find("<text class='lbl'"); p != std::string::npos;
+         p = svg.find("<text class='lbl'", p + 1)) {
+        const double x = std::stod(svg.substr(svg.find("x='", p) + 3));
+        const double y = std::stod(svg.substr(svg.find("y='", p) + 3));
+        const size_t t0 = svg.find('>', p) + 1;
+        const std::string text = svg.substr(t0, svg.find("</text>", t0) - t0);
+        out.push_back({x, y - 10, x + 6.5 * double(text.size()), y + 3, text});
+    }
+    return out;
+}
+
+std::vector<double> circleYs(const std::string& html) {
+    std::vector<double> ys;
+    const std::string svg = html.substr(0, html.find("</svg>"));
+    for (size_t p = svg.find("<circle"); p != std::string::npos; p = svg.find("<circle", p + 1))
+        ys.push_back(std::stod(svg.substr(svg.find("cy='", p) + 4)));
+    return ys;
+}
+
+}  // namespace
+
+TEST(BenchReport, InputRowOffScaleAndLabelsApart) {
+    // A sweep of close settings (3-4 ms, relMSE 0.010-0.018) and the unfiltered input, 50x worse:
+    // the axis must spread the settings, not fit the input, and no two labels may overlap.
+    BenchReport r;
+    r.frames = {1, 2, 3};
+    for (int k = 0; k < 8; ++k)
+        r.rows.push_back(row("svgf sigmaL=" + std::to_string(k + 1), 3 + 0.1 * k,
+                             0.010 + 0.001 * k));
+    r.rows.push_back(row("svgf-fast", 3.05, 0.0105));
+    for (int k = 0; k < 5; ++k)  // settings that change nothing measurable: one point
+        r.rows.push_back(row("svgf tie " + std::to_string(k), 3.4 + 0.001 * k, 0.0140));
+    r.rows.push_back(row("noisy input", 0, 0.8));
+    r.rows.back().inputOnly = true;
+    const std::string html = slurp(writeBenchReport(r, testutil::tempDir() / "offscale").html);
+
+    const std::vector<double> ys = circleYs(html);
+    ASSERT_EQ(ys.size(), 14u);  // the input is no circle on the axis
+    const auto [lo, hi] = std::minmax_element(ys.begin(), ys.end());
+    EXPECT_GT(*hi - *lo, 80.0) << "settings squeezed on a few pixels of the error axis";
+    EXPECT_NE(html.find("noisy input: 30.0 dB, off scale"), std::string::npos);
+
+    const std::vector<Label> labels = firstPlotLabels(html);
+    ASSERT_GE(labels.size(), 15u);
+    for (size_t i = 0; i < labels.size(); ++i)
+        for (size_t j = i + 1; j < labels.size(); ++j)
+            EXPECT_FALSE(labels[i].x0 < labels[j].x1 && labels[j].x0 < labels[i].x1 &&
+                         labels[i].y0 < labels[j].y1 && labels[j].y0 < labels[i].y1)
+                << "'" << labels[i].text << "' overlaps '" << labels[j].text << "'";
+}

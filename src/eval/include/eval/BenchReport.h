@@ -34,6 +34,9 @@ struct BenchRow {
     /// Optional: the same crop of intermediate resources ("pass.port", linear RGB), shown beside
     /// the output crop (kestrel bench --crop-dump).
     std::vector<std::pair<std::string, Image>> intermediateCrops;
+    /// The unfiltered input (the error of doing nothing): plotted off the error axis, so the
+    /// settings being compared spread over it instead of sitting on its bottom edge.
+    bool inputOnly = false;
 
     /// Means over frames (temporal over the frames that have it).
     FrameMetrics mean() const;
