@@ -256,13 +256,15 @@ public:
         const bool timed =
             i >= size_t(b_.options.warmup) || b_.frames.size() <= size_t(b_.options.warmup);
         double compute = 0, load = 0;
+        std::map<std::string, double> passes;
         for (const auto& t : f.passes) {
             (p_.sources.count(t.pass) ? load : compute) += t.ms;
-            if (timed) passMs[t.pass].push_back(t.ms);
+            if (!p_.sources.count(t.pass)) passes[t.pass] += t.ms;
         }
         if (timed) {
             computeMs.push_back(compute);
             loadMs.push_back(load);
+            passMs.push_back(std::move(passes));
         }
         ImageView out = exec.output(p_.marked);
         const CropBox box(out.extent);
@@ -277,7 +279,16 @@ public:
     }
 
     std::vector<double> computeMs, loadMs;
-    std::map<std::string, std::vector<double>> passMs;
+    std::vector<std::map<std::string, double>> passMs;  ///< per timed frame, compute passes
+
+    /// The timed frame whose compute time is the median: its per-pass times add up to the
+    /// setting's ms per frame (medians taken pass by pass would not).
+    size_t medianFrame() const {
+        std::vector<size_t> idx(computeMs.size());
+        for (size_t k = 0; k < idx.size(); ++k) idx[k] = k;
+        std::sort(idx.begin(), idx.end(), [&](size_t a, size_t b) { return computeMs[a] < computeMs[b]; });
+        return idx.empty() ? 0 : idx[idx.size() / 2];
+    }
 
 private:
     /// Throws FrameError when the reference frame has another size than the output.
@@ -320,9 +331,11 @@ void runSetting(BenchRun& b, const Setting& s, Prepared& p) {
     const SequenceResult result = SequenceRunner(*p.compiled, so).run(exec, &frames);
     if (result.end == SequenceEnd::Failed) throw Error(result.error);
     row.msPerFrame = s.inputOnly ? 0.0 : median(frames.computeMs);
-    for (const auto& n : p.compiled->executionOrder())
-        if (!p.sources.count(n) && frames.passMs.count(n))
-            row.passMs.push_back({n, median(frames.passMs[n])});
+    if (!frames.passMs.empty() && !s.inputOnly) {
+        const auto& passes = frames.passMs[frames.medianFrame()];
+        for (const auto& n : p.compiled->executionOrder())
+            if (auto it = passes.find(n); it != passes.end()) row.passMs.push_back(*it);
+    }
     auto m = row.mean();
     if (!b.reference.empty())
         std::printf("%-34s %10.5f %7.2f %6.3f %9.5f %8.0f %10.2f %9.2f\n", s.name.c_str(), m.relMse,

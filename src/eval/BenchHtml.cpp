@@ -1,5 +1,6 @@
 // The self-contained HTML page of the bench report: tables, inline SVG plots and PNG crops.
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -16,6 +17,12 @@ const char* const kPalette[] = {"#4e79a7", "#f28e2b", "#e15759", "#76b7b2", "#59
                                 "#edc948", "#b07aa1", "#ff9da7", "#9c755f", "#bab0ac"};
 const char* colour(size_t i) {
     return kPalette[i % (sizeof kPalette / sizeof *kPalette)];
+}
+// The palette, then distinct hues (golden-angle steps): no two stages share a colour.
+std::string stageColour(size_t k) {
+    const size_t n = sizeof kPalette / sizeof *kPalette;
+    if (k < n) return kPalette[k];
+    return "hsl(" + std::to_string((k - n) * 137 % 360) + ",45%,55%)";
 }
 
 std::string num(double v, const char* f = "%.1f") {
@@ -259,27 +266,69 @@ std::string errorPerFrame(const BenchReport& r) {
     return os.str();
 }
 
-// Per-pass ms as horizontal stacked bars, one bar per setting.
+// A pass's chain (its group instance: "diffuse", "specular", "single"; "" outside any group) and
+// stage (its name in the group, iteration numbers dropped: atrous0..4 are one stage "atrous").
+std::pair<std::string, std::string> chainAndStage(const std::string& pass) {
+    const size_t dot = pass.rfind('.');
+    std::string chain = dot == std::string::npos ? "" : pass.substr(0, dot);
+    std::string stage = dot == std::string::npos ? pass : pass.substr(dot + 1);
+    while (stage.size() > 1 && std::isdigit(static_cast<unsigned char>(stage.back())))
+        stage.pop_back();
+    return {chain, stage};
+}
+
+// Per-pass ms as horizontal stacked bars, one bar per setting, passes summed by chain and stage:
+// one colour per stage (a handful, not one per pass), chains split by a white gap and named in
+// the tooltip. The bars are the table's ms per frame: the CLI takes every pass's time from the
+// setting's median frame.
 std::string passBreakdown(const BenchReport& r) {
-    std::vector<std::string> passes;  // first-seen order
+    struct Segment {
+        std::string chain, stage;
+        double ms = 0;
+        int passes = 0;
+    };
+    std::vector<std::string> stages;  // first-seen order: the legend
+    std::vector<std::vector<Segment>> bars;
     double tMax = 0;
+    size_t longest = 0;
     for (const BenchRow& row : r.rows) {
+        std::vector<Segment> bar;
         double total = 0;
         for (const auto& [pass, ms] : row.passMs) {
-            if (std::find(passes.begin(), passes.end(), pass) == passes.end())
-                passes.push_back(pass);
+            auto [chain, stage] = chainAndStage(pass);
+            if (std::find(stages.begin(), stages.end(), stage) == stages.end())
+                stages.push_back(stage);
+            auto it = std::find_if(bar.begin(), bar.end(), [&](const Segment& s) {
+                return s.chain == chain && s.stage == stage;
+            });
+            if (it == bar.end()) it = bar.insert(bar.end(), Segment{chain, stage});
+            it->ms += std::max(ms, 0.0), ++it->passes;
             total += std::max(ms, 0.0);
         }
+        std::vector<std::string> chains;  // first-seen order: a chain's stages side by side
+        for (const Segment& s : bar)
+            if (std::find(chains.begin(), chains.end(), s.chain) == chains.end())
+                chains.push_back(s.chain);
+        auto rank = [&](const Segment& s) {
+            return std::find(chains.begin(), chains.end(), s.chain) - chains.begin();
+        };
+        std::stable_sort(bar.begin(), bar.end(),
+                         [&](const Segment& a, const Segment& b) { return rank(a) < rank(b); });
+        bars.push_back(std::move(bar));
         tMax = std::max(tMax, total);
+        longest = std::max(longest, row.name.size());
     }
     Axes a;
-    a.left = 170;
+    a.left = std::max(120.0, textWidth(std::string(longest, 'x')) + 12);
     a.width = 460;
     a.height = std::max(60.0, 28.0 * double(r.rows.size()));
-    a.xmax = tMax > 0 ? tMax * 1.05 : 1;
-    std::ostringstream os;
+    a.xmax = tMax > 0 ? tMax * 1.2 : 1;  // room for the totals
+    const int columns = 4;
+    const double column = 140;
     Axes tall = a;
-    tall.height += 16 + 18.0 * double((passes.size() + 3) / 4);  // room for the legend
+    tall.height += 16 + 18.0 * double((stages.size() + columns - 1) / columns);
+    tall.width = std::max(a.width, column * columns);
+    std::ostringstream os;
     os << svgOpen(tall);
     a.draw(os, "ms per frame", "");
     for (size_t i = 0; i < r.rows.size(); ++i) {
@@ -287,21 +336,24 @@ std::string passBreakdown(const BenchReport& r) {
         os << "<text x='" << a.left - 6 << "' y='" << y + 13 << "' text-anchor='end'>"
            << escapeXml(r.rows[i].name) << "</text>\n";
         double t = 0;
-        for (const auto& [pass, ms] : r.rows[i].passMs) {
-            const size_t k = size_t(std::find(passes.begin(), passes.end(), pass) - passes.begin());
-            const double w = std::max(ms, 0.0);
-            os << "<rect x='" << a.px(t) << "' y='" << y << "' width='" << a.px(t + w) - a.px(t)
-               << "' height='18' fill='" << colour(k) << "'><title>" << escapeXml(pass) << ": "
-               << num(ms, "%.3f") << " ms</title></rect>\n";
-            t += w;
+        for (const Segment& s : bars[i]) {
+            const size_t k = size_t(std::find(stages.begin(), stages.end(), s.stage) - stages.begin());
+            os << "<rect x='" << a.px(t) << "' y='" << y << "' width='" << a.px(t + s.ms) - a.px(t)
+               << "' height='18' fill='" << stageColour(k) << "' stroke='#fff' stroke-width='0.5'><title>"
+               << escapeXml(s.chain.empty() ? s.stage : s.chain + " \u00b7 " + s.stage) << " ("
+               << s.passes << (s.passes == 1 ? " pass" : " passes") << "): " << num(s.ms, "%.3f")
+               << " ms</title></rect>\n";
+            t += s.ms;
         }
+        os << "<text class='total' x='" << a.px(t) + 4 << "' y='" << y + 13 << "'>"
+           << num(t, "%.2f") << "</text>\n";
     }
-    for (size_t k = 0; k < passes.size(); ++k) {
-        const double x = a.left + 115.0 * double(k % 4),
-                     y = a.top + a.height + 64 + 18.0 * double(k / 4);
-        os << "<rect x='" << x << "' y='" << y - 9 << "' width='10' height='10' fill='" << colour(k)
-           << "'/><text x='" << x + 14 << "' y='" << y << "'>" << escapeXml(passes[k])
-           << "</text>\n";
+    for (size_t k = 0; k < stages.size(); ++k) {
+        const double x = a.left + column * double(k % columns),
+                     y = a.top + a.height + 64 + 18.0 * double(k / columns);
+        os << "<rect x='" << x << "' y='" << y - 9 << "' width='10' height='10' fill='"
+           << stageColour(k) << "'/><text x='" << x + 14 << "' y='" << y << "'>"
+           << escapeXml(stages[k]) << "</text>\n";
     }
     os << "</svg>\n";
     return os.str();

@@ -1,6 +1,7 @@
 // kestrel bench --crop-dump: chosen intermediate resources shown as crops beside each setting's
 // output in the HTML report, on a tiny generated scene.
 #include <map>
+#include <sstream>
 
 #include "CliRunner.h"
 
@@ -70,4 +71,37 @@ TEST(CliBench, CropDumpShowsIntermediatesBesideTheOutput) {
     EXPECT_NE(typo.errorLines()[0].find("--crop-dump '*atrous9.color' matches no resource"),
               std::string::npos)
         << typo.all();
+}
+
+TEST(CliBench, PassTimesAddUpToTheTable) {
+    // bench_passes.csv (and the per-pass chart) sum to bench.csv's ms per frame for every setting:
+    // the passes' times are those of the setting's median frame.
+    Sandbox box;
+    if (!makeScene(box, box.work() / "scene", 32, 24, 6))
+        GTEST_SKIP() << "no scenegen in this build";
+    const CliResult r = box.run({"bench", std::string(KESTREL_SOURCE_DIR) + "/graphs/svgf.json",
+                                 "--input", "scene/noisy/frame_####.exr", "--reference",
+                                 "scene/ref/frame_####.exr", "--warmup", "1", "--threads", "1",
+                                 "--report", "rep"});
+    ASSERT_EQ(r.code, 0) << r.all();
+    std::map<std::string, double> sums;
+    std::istringstream passes(readText(box.work() / "rep" / "bench_passes.csv"));
+    std::string line;
+    std::getline(passes, line);  // header
+    while (std::getline(passes, line))
+        sums[line.substr(0, line.find(','))] += std::stod(line.substr(line.rfind(',') + 1));
+    std::istringstream table(readText(box.work() / "rep" / "bench.csv"));
+    std::getline(table, line);
+    int checked = 0;
+    while (std::getline(table, line)) {
+        std::vector<std::string> f;
+        std::istringstream fields(line);
+        for (std::string v; std::getline(fields, v, ',');) f.push_back(v);
+        ASSERT_GE(f.size(), 6u) << line;
+        if (!sums.count(f[0])) continue;  // the input row has no computing pass
+        const double ms = std::stod(f[5]);
+        EXPECT_NEAR(sums[f[0]], ms, 1e-4 * ms + 1e-6) << f[0];
+        ++checked;
+    }
+    EXPECT_EQ(checked, 1);
 }

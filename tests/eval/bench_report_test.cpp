@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <png.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -200,4 +201,40 @@ TEST(BenchReport, InputRowOffScaleAndLabelsApart) {
             EXPECT_FALSE(labels[i].x0 < labels[j].x1 && labels[j].x0 < labels[i].x1 &&
                          labels[i].y0 < labels[j].y1 && labels[j].y0 < labels[i].y1)
                 << "'" << labels[i].text << "' overlaps '" << labels[j].text << "'";
+}
+
+TEST(BenchReport, PassChartGroupsChainsAndStages) {
+    // svgf.json's passes with the split: two chains of the same stages, A-Trous iterations
+    // numbered, then TAA: 21 passes, 10 stages.
+    BenchReport r;
+    r.frames = {1, 2, 3};
+    r.rows.push_back(row("svgf", 10, 0.02));
+    r.rows.back().passMs.clear();
+    double total = 0;
+    for (const std::string chain : {"diffuse", "specular"})
+        for (const std::string stage : {"demodulate", "reprojection", "antilag", "temporal",
+                                        "variance", "atrous0", "atrous1", "atrous2", "modulate"}) {
+            r.rows.back().passMs.push_back({chain + "." + stage, 0.25});
+            total += 0.25;
+        }
+    for (const std::string pass : {"background", "taaReprojection", "taa"})
+        r.rows.back().passMs.push_back({pass, 0.5}), total += 0.5;
+    r.rows.back().msPerFrame = total;
+    const std::string html = slurp(writeBenchReport(r, testutil::tempDir() / "passes").html);
+    const std::string chart = html.substr(html.find("<h2>Time per pass</h2>"));
+
+    // The legend: one swatch per stage, no colour twice.
+    std::vector<std::string> fills;
+    for (size_t p = chart.find("width='10' height='10' fill='"); p != std::string::npos;
+         p = chart.find("width='10' height='10' fill='", p + 1))
+        fills.push_back(chart.substr(p + 29, chart.find('\'', p + 29) - p - 29));
+    EXPECT_EQ(fills.size(), 10u);
+    std::sort(fills.begin(), fills.end());
+    EXPECT_EQ(std::unique(fills.begin(), fills.end()), fills.end()) << "a colour repeats";
+    EXPECT_NE(chart.find("<title>diffuse \u00b7 atrous (3 passes): 0.750 ms</title>"),
+              std::string::npos);
+    // The bar's total is the table's ms per frame.
+    EXPECT_NE(chart.find("<text class='total' x='"), std::string::npos);
+    EXPECT_NE(chart.find(">" + std::to_string(total).substr(0, 4) + "</text>"), std::string::npos)
+        << "total " << total;
 }
