@@ -370,6 +370,27 @@ std::string cropFigure(const ImageView& img, ToneMap t, const std::string& label
            "</figcaption></figure>\n";
 }
 
+// Measures, as the page's last script (layout is then complete for the plots), every text of every plot and writes into
+// <body data-label-check> "ok N" (N texts, no two overlapping) or the overlapping pairs: what
+// tests/cli/report_browser_test.sh reads from headless chromium's --dump-dom.
+const char* const kLabelCheck = R"(<script>
+(() => {
+  const bad = [];
+  let n = 0;
+  for (const svg of document.querySelectorAll('svg')) {
+    const boxes = [...svg.querySelectorAll('text')].filter(t => t.textContent.trim())
+      .map(t => [t.textContent, t.getBoundingClientRect()]);
+    n += boxes.length;
+    boxes.forEach(([ta, a], i) => boxes.slice(i + 1).forEach(([tb, b]) => {
+      if (a.left < b.right - 0.5 && b.left < a.right - 0.5 && a.top < b.bottom - 0.5 &&
+          b.top < a.bottom - 0.5) bad.push(ta + ' / ' + tb);
+    }));
+  }
+  document.body.dataset.labelCheck = bad.length ? 'overlap: ' + bad.join('; ') : 'ok ' + n;
+})();
+</script>
+)";
+
 }  // namespace
 
 std::string benchHtml(const BenchReport& r, const std::vector<size_t>& pareto) {
@@ -419,7 +440,7 @@ std::string benchHtml(const BenchReport& r, const std::vector<size_t>& pareto) {
             os << cropFigure(r.referenceCrop, r.toneMap, "reference") << "</div>\n";
         }
     }
-    os << "</body></html>\n";
+    os << kLabelCheck << "</body></html>\n";
     return os.str();
 }
 
