@@ -36,6 +36,7 @@ struct BenchOptions {
     std::string toneMap = "reinhard";
     int threads = 0;
     int warmup = 2;
+    int rounds = 3;  ///< each setting's frames run once per round, settings alternating
     bool noInputRow = false;
     bool noFuse = false;
     std::vector<std::string> cropDumps;  ///< intermediates shown as crops in the report
@@ -249,8 +250,10 @@ Prepared prepare(const Setting& s, const BenchRun& b) {
 /// reference, and the crops of the output and of the chosen intermediates.
 class BenchFrames : public SequenceObserver {
 public:
-    BenchFrames(BenchRun& b, const Setting& s, const Prepared& p, eval::BenchRow& row)
-        : b_(b), s_(s), p_(p), row_(row) {}
+    /// `measure`: compare with the reference and take the crops (the first round); the other
+    /// rounds only time.
+    BenchFrames(BenchRun& b, const Setting& s, const Prepared& p, eval::BenchRow& row, bool measure)
+        : b_(b), s_(s), p_(p), row_(row), measure_(measure) {}
 
     void frameDone(const FrameRecord& f, size_t i, const Executor& exec) override {
         const bool timed =
@@ -266,6 +269,7 @@ public:
             loadMs.push_back(load);
             passMs.push_back(std::move(passes));
         }
+        if (!measure_) return;
         ImageView out = exec.output(p_.marked);
         const CropBox box(out.extent);
         if (!b_.reference.empty()) compare(out, f.frame, i == b_.cropFrame ? &box : nullptr);
@@ -280,15 +284,6 @@ public:
 
     std::vector<double> computeMs, loadMs;
     std::vector<std::map<std::string, double>> passMs;  ///< per timed frame, compute passes
-
-    /// The timed frame whose compute time is the median: its per-pass times add up to the
-    /// setting's ms per frame (medians taken pass by pass would not).
-    size_t medianFrame() const {
-        std::vector<size_t> idx(computeMs.size());
-        for (size_t k = 0; k < idx.size(); ++k) idx[k] = k;
-        std::sort(idx.begin(), idx.end(), [&](size_t a, size_t b) { return computeMs[a] < computeMs[b]; });
-        return idx.empty() ? 0 : idx[idx.size() / 2];
-    }
 
 private:
     /// Throws FrameError when the reference frame has another size than the output.
@@ -311,28 +306,57 @@ private:
     const Setting& s_;
     const Prepared& p_;
     eval::BenchRow& row_;
+    bool measure_;
     eval::FrameImages prev_, cur_;
     bool havePrev_ = false;
 };
 
-/// Runs one prepared setting over the frames and prints its line of the table.
-void runSetting(BenchRun& b, const Setting& s, Prepared& p) {
+/// One setting's timings pooled over the rounds.
+struct Timings {
+    std::vector<double> computeMs, loadMs, roundMedians;
+    std::vector<std::map<std::string, double>> passMs;  ///< per timed frame
+
+    /// The timed frame whose compute time is the median: its per-pass times add up to the
+    /// setting's ms per frame (medians taken pass by pass would not).
+    size_t medianFrame() const {
+        std::vector<size_t> idx(computeMs.size());
+        for (size_t k = 0; k < idx.size(); ++k) idx[k] = k;
+        std::sort(idx.begin(), idx.end(),
+                  [&](size_t a, size_t c) { return computeMs[a] < computeMs[c]; });
+        return idx.empty() ? 0 : idx[idx.size() / 2];
+    }
+};
+
+/// Runs one prepared setting over the frames once (a round): the first round also measures the
+/// error and takes the crops into `row`; every round adds its timings to `t`.
+void runRound(BenchRun& b, const Setting& s, Prepared& p, eval::BenchRow& row, Timings& t,
+              bool first) {
     Parallel parallel(b.options.threads);
     RunInfo info;
     info.graphName = p.compiled->desc().name;
     Executor exec(*p.compiled, parallel, info);
-    eval::BenchRow row;
-    row.name = s.name;
-    row.inputOnly = s.inputOnly;
-    BenchFrames frames(b, s, p, row);
+    BenchFrames frames(b, s, p, row, first);
     SequenceOptions so;
     so.frames = b.frames;
     so.writeOutputs = false;  // the writers are detached; nothing is written
     const SequenceResult result = SequenceRunner(*p.compiled, so).run(exec, &frames);
     if (result.end == SequenceEnd::Failed) throw Error(result.error);
-    row.msPerFrame = s.inputOnly ? 0.0 : median(frames.computeMs);
-    if (!frames.passMs.empty() && !s.inputOnly) {
-        const auto& passes = frames.passMs[frames.medianFrame()];
+    t.roundMedians.push_back(median(frames.computeMs));
+    t.computeMs.insert(t.computeMs.end(), frames.computeMs.begin(), frames.computeMs.end());
+    t.loadMs.insert(t.loadMs.end(), frames.loadMs.begin(), frames.loadMs.end());
+    t.passMs.insert(t.passMs.end(), frames.passMs.begin(), frames.passMs.end());
+}
+
+/// Fills the row's timings from all rounds and prints its line of the table.
+void finishSetting(BenchRun& b, const Setting& s, const Prepared& p, eval::BenchRow& row,
+                   const Timings& t) {
+    row.name = s.name;
+    row.inputOnly = s.inputOnly;
+    if (!s.inputOnly && !t.computeMs.empty()) {
+        row.msPerFrame = median(t.computeMs);
+        const auto [lo, hi] = std::minmax_element(t.roundMedians.begin(), t.roundMedians.end());
+        row.msMin = *lo, row.msMax = *hi;
+        const auto& passes = t.passMs[t.medianFrame()];
         for (const auto& n : p.compiled->executionOrder())
             if (auto it = passes.find(n); it != passes.end()) row.passMs.push_back(*it);
     }
@@ -340,12 +364,11 @@ void runSetting(BenchRun& b, const Setting& s, Prepared& p) {
     if (!b.reference.empty())
         std::printf("%-34s %10.5f %7.2f %6.3f %9.5f %8.0f %10.2f %9.2f\n", s.name.c_str(), m.relMse,
                     m.psnr, m.ssim, m.temporal.value_or(0.0), m.speckles, row.msPerFrame,
-                    median(frames.loadMs));
+                    median(t.loadMs));
     else
         std::printf("%-34s %10s %7s %6s %9s %8s %10.2f %9.2f\n", s.name.c_str(), "-", "-", "-", "-",
-                    "-", row.msPerFrame, median(frames.loadMs));
+                    "-", row.msPerFrame, median(t.loadMs));
     std::fflush(stdout);
-    b.report.rows.push_back(std::move(row));
 }
 
 /// Throws Error (a usage error) naming a --crop-dump pattern no setting computes.
@@ -416,17 +439,32 @@ int runBench(const BenchOptions& o) {
     if (usage != 0) return usage;
     std::printf("%-34s %10s %7s %6s %9s %8s %10s %9s\n", "graph / setting", "relMSE", "PSNR",
                 "SSIM", "temporal", "speckles", "ms/frame", "load ms");
+    // Rounds alternate the settings so that a slow spell of the machine (another job, the
+    // clock) falls on all of them, and the spread over rounds shows how far timings are noise.
+    std::vector<eval::BenchRow> rows(settings.size());
+    std::vector<Timings> timings(settings.size());
+    std::vector<std::string> failed(settings.size());
+    for (size_t i = 0; i < settings.size(); ++i) failed[i] = prepared[i].error;
+    for (int round = 0; round < o.rounds; ++round)
+        for (size_t i = 0; i < settings.size(); ++i) {
+            if (!failed[i].empty()) continue;
+            try {
+                runRound(b, settings[i], prepared[i], rows[i], timings[i], round == 0);
+            } catch (const Error& e) {
+                failed[i] = e.what();
+            }
+        }
     int skipped = 0;
     std::string firstFailure;
     for (size_t i = 0; i < settings.size(); ++i) {
-        try {
-            if (!prepared[i].error.empty()) throw Error(prepared[i].error);
-            runSetting(b, settings[i], prepared[i]);
-        } catch (const Error& e) {
+        if (failed[i].empty()) {
+            finishSetting(b, settings[i], prepared[i], rows[i], timings[i]);
+            b.report.rows.push_back(std::move(rows[i]));
+        } else {
             // A graph this scene cannot feed (e.g. a split graph on a scene without the split) is
             // reported and skipped; the other rows still make a report.
-            std::printf("%-34s skipped: %s\n", settings[i].name.c_str(), e.what());
-            if (firstFailure.empty()) firstFailure = e.what();
+            std::printf("%-34s skipped: %s\n", settings[i].name.c_str(), failed[i].c_str());
+            if (firstFailure.empty()) firstFailure = failed[i];
             ++skipped;
         }
         prepared[i].compiled.reset();  // its passes are done with
@@ -471,6 +509,10 @@ void addBenchCommand(CLI::App& app, Action& action) {
         ->check(CLI::Range(0, 1024));
     cmd->add_option("--warmup", o->warmup, "Frames left out of the timing medians")
         ->check(CLI::Range(0, 1000));
+    cmd->add_option("--rounds", o->rounds,
+                    "Timing rounds: every setting's frames run once per round, the settings "
+                    "alternating; the report shows the spread over the rounds (default 3)")
+        ->check(CLI::Range(1, 100));
     cmd->add_option("--report", o->report, "Report folder");
     cmd->add_option("--tonemap", o->toneMap, "Tone map of PSNR/SSIM: reinhard, clamp, srgb");
     cmd->add_flag("--no-input-row", o->noInputRow, "Leave out the unfiltered-input row");

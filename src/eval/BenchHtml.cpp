@@ -168,7 +168,7 @@ std::string errorVersusTime(const BenchReport& r, const std::vector<size_t>& par
     std::vector<double> err;
     for (const BenchRow& row : r.rows) err.push_back(row.mean().relMse);
     for (size_t i : onAxis) {
-        tMax = std::max(tMax, r.rows[i].msPerFrame);
+        tMax = std::max({tMax, r.rows[i].msPerFrame, r.rows[i].msMax});
         eLo = std::min(eLo, err[i]), eHi = std::max(eHi, err[i]);
     }
     a.xmax = tMax > 0 ? tMax * 1.15 : 1;
@@ -211,6 +211,17 @@ std::string errorVersusTime(const BenchReport& r, const std::vector<size_t>& par
     for (size_t i : offScale)
         label(std::min(a.px(r.rows[i].msPerFrame), a.left + a.width - 6), a.top - 8,
               r.rows[i].name + ": " + psnrText(r.rows[i]) + ", off scale", i);
+    for (size_t i : onAxis) {  // the spread over the rounds: a whisker from min to max
+        const BenchRow& row = r.rows[i];
+        if (row.msMax <= row.msMin) continue;
+        const double y = a.py(err[i]), x0 = a.px(row.msMin), x1 = a.px(row.msMax);
+        marks << "<path d='M" << x0 << ',' << y - 4 << " v8 M" << x0 << ',' << y << " H" << x1
+              << " M" << x1 << ',' << y - 4 << " v8' stroke='" << colour(i)
+              << "' stroke-width='1.5' fill='none'><title>" << escapeXml(row.name) << ": "
+              << num(row.msMin, "%.2f") << "-" << num(row.msMax, "%.2f")
+              << " ms over the rounds</title></path>\n";
+        labels.addObstacle({x0, y - 4, x1, y + 4});
+    }
     for (size_t i : onAxis) {
         const bool onFront = std::find(pareto.begin(), pareto.end(), i) != pareto.end();
         const double x = a.px(r.rows[i].msPerFrame), y = a.py(err[i]);
@@ -404,7 +415,7 @@ std::string benchHtml(const BenchReport& r, const std::vector<size_t>& pareto) {
        << " frames. PSNR, SSIM and temporal instability on " << toneMapName(r.toneMap)
        << "-tone-mapped values; bold rows are on the Pareto front of (ms per frame, relMSE).</p>\n";
     os << "<table><tr><th>setting</th><th>relMSE</th><th>PSNR dB</th><th>SSIM</th>"
-          "<th>temporal</th><th>ms/frame</th></tr>\n";
+          "<th>temporal</th><th>ms/frame</th><th>ms over rounds</th></tr>\n";
     for (size_t i = 0; i < r.rows.size(); ++i) {
         const FrameMetrics m = r.rows[i].mean();
         const bool front = std::find(pareto.begin(), pareto.end(), i) != pareto.end();
@@ -413,9 +424,16 @@ std::string benchHtml(const BenchReport& r, const std::vector<size_t>& pareto) {
            << "</td><td class='n'>" << num(m.psnr, "%.2f") << "</td><td class='n'>"
            << num(m.ssim, "%.4f") << "</td><td class='n'>"
            << (m.temporal ? num(*m.temporal, "%.6f") : "-") << "</td><td class='n'>"
-           << num(r.rows[i].msPerFrame, "%.2f") << "</td></tr>\n";
+           << num(r.rows[i].msPerFrame, "%.2f") << "</td><td class='n'>"
+           << (r.rows[i].msMax > 0
+                   ? num(r.rows[i].msMin, "%.2f") + "-" + num(r.rows[i].msMax, "%.2f")
+                   : "-")
+           << "</td></tr>\n";
     }
     os << "</table>\n<h2>Error versus time</h2>\n" << errorVersusTime(r, pareto);
+    os << "<p>Whiskers: the lowest and highest of the rounds' median ms per frame.</p>\n";
+    for (const auto& [i, j] : timingTies(r.rows, pareto))
+        os << "<p class='tie'>Tie: " << escapeXml(tieText(r.rows[i], r.rows[j])) << ".</p>\n";
     os << "<h2>Error per frame</h2>\n" << errorPerFrame(r);
     os << "<h2>Time per pass</h2>\n" << passBreakdown(r);
     bool anyCrop = r.noisyCrop.extent().pixels() > 0 || r.referenceCrop.extent().pixels() > 0;

@@ -105,3 +105,36 @@ TEST(CliBench, PassTimesAddUpToTheTable) {
     }
     EXPECT_EQ(checked, 1);
 }
+
+TEST(CliBench, RoundsGiveEachSettingItsSpread) {
+    // --rounds 3: bench.csv gives each setting the lowest and highest of its rounds' medians,
+    // around its ms per frame.
+    Sandbox box;
+    if (!makeScene(box, box.work() / "scene", 32, 24, 4))
+        GTEST_SKIP() << "no scenegen in this build";
+    const CliResult r = box.run({"bench", std::string(KESTREL_SOURCE_DIR) + "/graphs/svgf.json",
+                                 std::string(KESTREL_SOURCE_DIR) + "/graphs/svgf-fast.json",
+                                 "--input", "scene/noisy/frame_####.exr", "--reference",
+                                 "scene/ref/frame_####.exr", "--warmup", "1", "--threads", "1",
+                                 "--rounds", "3", "--report", "rep"});
+    ASSERT_EQ(r.code, 0) << r.all();
+    std::istringstream table(readText(box.work() / "rep" / "bench.csv"));
+    std::string line;
+    std::getline(table, line);
+    ASSERT_NE(line.find(",msMin,msMax"), std::string::npos) << line;
+    int checked = 0;
+    while (std::getline(table, line)) {
+        std::vector<std::string> f;
+        std::istringstream fields(line);
+        for (std::string v; std::getline(fields, v, ',');) f.push_back(v);
+        ASSERT_EQ(f.size(), 11u) << line;
+        const double ms = std::stod(f[5]), lo = std::stod(f[9]), hi = std::stod(f[10]);
+        if (ms == 0) continue;  // the input row: nothing timed
+        EXPECT_GT(lo, 0) << line;
+        EXPECT_LE(lo, ms * (1 + 1e-5)) << line;
+        EXPECT_GE(hi * (1 + 1e-5), ms) << line;
+        ++checked;
+    }
+    EXPECT_EQ(checked, 2);
+    EXPECT_EQ(box.run({"bench", "--rounds", "0"}).code, 2) << "--rounds 0 accepted";
+}

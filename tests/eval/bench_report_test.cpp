@@ -137,7 +137,8 @@ TEST(BenchReport, WritesFilesWithPlotsAndCrops) {
     EXPECT_NE(frames.find("svgf,5,0.01,30,0.9,,0"), std::string::npos) << frames;
     EXPECT_NE(slurp(files.passesCsv).find("jbf,atrous,21"), std::string::npos);
     const std::string md = slurp(files.markdown);
-    EXPECT_NE(md.find("| svgf | 0.02 | 30.00 | 0.9000 | 0.010000 | 0 | 12.00 | * |"), std::string::npos)
+    EXPECT_NE(md.find("| svgf | 0.02 | 30.00 | 0.9000 | 0.010000 | 0 | 12.00 | - | * |"),
+              std::string::npos)
         << md;
 }
 
@@ -237,4 +238,33 @@ TEST(BenchReport, PassChartGroupsChainsAndStages) {
     EXPECT_NE(chart.find("<text class='total' x='"), std::string::npos);
     EXPECT_NE(chart.find(">" + std::to_string(total).substr(0, 4) + "</text>"), std::string::npos)
         << "total " << total;
+}
+
+TEST(BenchReport, TimingSpreadAndTiesWithinNoise) {
+    // A and B: B more accurate, A faster by the median, but their ranges over the rounds
+    // overlap: a tie on time, B the pick. C is slower than both beyond the noise.
+    std::vector<BenchRow> r = rows({{"A", 1.0, 0.02}, {"B", 1.1, 0.01}, {"C", 3.0, 0.005}});
+    r[0].msMin = 0.9, r[0].msMax = 1.2;
+    r[1].msMin = 1.05, r[1].msMax = 1.3;
+    r[2].msMin = 2.9, r[2].msMax = 3.1;
+    const std::vector<size_t> front = paretoFront(r);
+    ASSERT_EQ(front, (std::vector<size_t>{0, 1, 2}));
+    EXPECT_EQ(timingTies(r, front), (std::vector<std::pair<size_t, size_t>>{{0, 1}}));
+    // Without a spread nothing ties (one round says nothing about noise).
+    std::vector<BenchRow> single = rows({{"A", 1.0, 0.02}, {"B", 1.1, 0.01}});
+    EXPECT_TRUE(timingTies(single, paretoFront(single)).empty());
+
+    BenchReport rep;
+    rep.frames = {1, 2, 3};
+    rep.rows = std::move(r);
+    const BenchFiles files = writeBenchReport(rep, testutil::tempDir() / "ties");
+    const std::string html = slurp(files.html), md = slurp(files.markdown);
+    const std::string tie = "A (0.90-1.20 ms) and B (1.05-1.30 ms) tie on time within the spread "
+                            "over the rounds: B, the lower error, is the pick";
+    EXPECT_NE(html.find("<p class='tie'>Tie: " + tie), std::string::npos);
+    EXPECT_NE(md.find("Tie: " + tie), std::string::npos) << md;
+    EXPECT_EQ(md.find("Tie: B"), std::string::npos);  // B-C is no tie
+    EXPECT_NE(html.find("<title>C: 2.90-3.10 ms over the rounds</title>"), std::string::npos);
+    EXPECT_NE(md.find("| 1.00 | 0.90-1.20 | * |"), std::string::npos) << md;
+    EXPECT_NE(slurp(files.csv).find(",0.9,1.2\n"), std::string::npos);
 }

@@ -29,6 +29,9 @@ struct BenchRow {
     std::string name;                  ///< e.g. "svgf", "svgf alpha=0.1"
     std::vector<FrameMetrics> errors;  ///< per frame, in BenchReport::frames order
     double msPerFrame = 0;             ///< median over frames after a warm-up
+    /// The spread of ms per frame: the lowest and highest of the rounds' medians (kestrel bench
+    /// --rounds); both 0 when unknown.
+    double msMin = 0, msMax = 0;
     std::vector<std::pair<std::string, double>> passMs;  ///< per pass, median ms, in run order
     Image crop;  ///< optional: a crop of one output frame, linear RGB (empty: none)
     /// Optional: the same crop of intermediate resources ("pass.port", linear RGB), shown beside
@@ -50,6 +53,11 @@ struct BenchReport {
     std::string cropNote;                 ///< e.g. "frame 8, x 100-227, y 40-167"
     Image noisyCrop, referenceCrop;       ///< optional, linear RGB, same crop as the rows'
 };
+
+/// Pairs (i, j) of Pareto-front rows, i faster than j by the median, whose times overlap within
+/// their round-to-round spread (msMin-msMax): between them the pick is by error only (j).
+std::vector<std::pair<size_t, size_t>> timingTies(const std::vector<BenchRow>& rows,
+                                                  const std::vector<size_t>& pareto);
 
 /// Indices of the rows on the Pareto front of (msPerFrame, mean relMSE), both minimised: no other
 /// row is at least as good in both and strictly better in one. Sorted by ms per frame.
