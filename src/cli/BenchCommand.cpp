@@ -152,21 +152,9 @@ Image cropOf(const ImageView& img, int x0, int y0, int w, int h) {
     return c;
 }
 
-/// The report's crop: the middle 128x128 (or less) of a frame.
-struct CropBox {
-    int x0, y0, w, h;
-    explicit CropBox(Extent e)
-        : x0((e.width - std::min(128, e.width)) / 2),
-          y0((e.height - std::min(128, e.height)) / 2),
-          w(std::min(128, e.width)),
-          h(std::min(128, e.height)) {}
-    Image of(const ImageView& img) const { return cropOf(img, x0, y0, w, h); }
-    std::string note(int64_t frame) const {
-        return "frame " + std::to_string(frame) + ", x " + std::to_string(x0) + "-" +
-               std::to_string(x0 + w - 1) + ", y " + std::to_string(y0) + "-" +
-               std::to_string(y0 + h - 1);
-    }
-};
+/// A whole frame as linear RGB (Float3): the report cuts its crops from it where the error is
+/// worst, which is known only once every setting has run.
+Image wholeFrame(const ImageView& img) { return cropOf(img, 0, 0, img.width(), img.height()); }
 
 /// What every setting shares: the input, reference, frames and the report being filled.
 struct BenchRun {
@@ -271,14 +259,14 @@ public:
         }
         if (!measure_) return;
         ImageView out = exec.output(p_.marked);
-        const CropBox box(out.extent);
-        if (!b_.reference.empty()) compare(out, f.frame, i == b_.cropFrame ? &box : nullptr);
-        if (i == b_.cropFrame) {
-            row_.crop = box.of(out);
+        const bool cropFrame = i == b_.cropFrame;
+        if (!b_.reference.empty()) compare(out, f.frame, cropFrame);
+        if (cropFrame) {
+            row_.frame = wholeFrame(out);
             for (const auto& r : p_.crops)
-                row_.intermediateCrops.push_back({r, box.of(exec.output(r))});
-            b_.report.cropNote = box.note(f.frame);
-            if (s_.inputOnly) b_.report.noisyCrop = box.of(out);
+                row_.intermediateFrames.push_back({r, wholeFrame(exec.output(r))});
+            b_.report.cropFrameNumber = f.frame;
+            if (s_.inputOnly) b_.report.noisyFrame = wholeFrame(out);
         }
     }
 
@@ -287,7 +275,7 @@ public:
 
 private:
     /// Throws FrameError when the reference frame has another size than the output.
-    void compare(const ImageView& out, int64_t frame, const CropBox* box) {
+    void compare(const ImageView& out, int64_t frame, bool cropFrame) {
         const std::string path = expandFramePattern(b_.reference, frame);
         Image ref = eval::readExrRgb(path, b_.options.refLayer);
         if (ref.extent() != out.extent)
@@ -298,8 +286,8 @@ private:
             eval::compareImages(out, ref.view(), b_.toneMap, havePrev_ ? &prev_ : nullptr, &cur_));
         std::swap(prev_, cur_);
         havePrev_ = true;
-        if (box && b_.report.referenceCrop.width() == 0)
-            b_.report.referenceCrop = box->of(ref.view());
+        if (cropFrame && b_.report.referenceFrame.width() == 0)
+            b_.report.referenceFrame = wholeFrame(ref.view());
     }
 
     BenchRun& b_;

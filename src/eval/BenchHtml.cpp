@@ -402,6 +402,124 @@ const char* const kLabelCheck = R"(<script>
 </script>
 )";
 
+Image cut(const ImageView& img, const CropRect& r) {
+    Image c(r.w, r.h, Format::Float3);
+    for (int ch = 0; ch < 3; ++ch)
+        for (int y = 0; y < r.h; ++y)
+            for (int x = 0; x < r.w; ++x)
+                c.at(ch, x, y) = img.at(std::min(ch, img.channels() - 1), r.x0 + x, r.y0 + y);
+    return c;
+}
+
+// |a - b| per channel, brightened so that the 99th percentile of the largest channel is white:
+// a firefly does not turn the rest black. The gain goes in the caption.
+Image difference(const ImageView& a, const ImageView& b, double& gain) {
+    Image d(a.width(), a.height(), Format::Float3);
+    std::vector<float> peak;
+    for (int y = 0; y < a.height(); ++y)
+        for (int x = 0; x < a.width(); ++x) {
+            float m = 0;
+            for (int c = 0; c < 3; ++c) {
+                const float v = std::fabs(a.at(c, x, y) - b.at(c, x, y));
+                d.at(c, x, y) = std::isfinite(v) ? v : 0.0f;
+                m = std::max(m, d.at(c, x, y));
+            }
+            peak.push_back(m);
+        }
+    std::sort(peak.begin(), peak.end());
+    const float p99 = peak.empty() ? 0.0f : peak[peak.size() * 99 / 100];
+    gain = p99 > 0 ? 1.0 / p99 : 1.0;
+    for (int c = 0; c < 3; ++c)
+        for (int y = 0; y < d.height(); ++y)
+            for (int x = 0; x < d.width(); ++x) d.at(c, x, y) *= float(gain);
+    return d;
+}
+
+std::string dataUri(const ImageView& img, ToneMap t) {
+    return "data:image/png;base64," + base64(encodePng(img, t));
+}
+
+// The best setting's crop that flips to the reference's on a click (the script kFlip).
+std::string flipFigure(const ImageView& a, const ImageView& b, ToneMap t, const std::string& an) {
+    const int scale = a.width() < 200 ? 2 : 1;
+    return "<figure class='ab'><img class='flip' alt='A/B: " + escapeXml(an) +
+           " | reference' width='" + std::to_string(a.width() * scale) +
+           "' style='image-rendering:pixelated;cursor:pointer' src='" + dataUri(a, t) +
+           "' data-other='" + dataUri(b, t) + "' data-names='" + escapeXml(an) +
+           "|reference'><figcaption>A/B: " + escapeXml(an) +
+           " (click: reference)</figcaption></figure>\n";
+}
+
+bool hasFrame(const BenchRow& row, const BenchReport& r) {
+    return !row.inputOnly && row.frame.extent().pixels() > 0 &&
+           row.frame.extent() == r.referenceFrame.extent();
+}
+
+// The row with the lowest mean error among those with a frame, not the input: the A/B flip's
+// and the difference image's subject.
+const BenchRow* bestRow(const BenchReport& r) {
+    const BenchRow* best = nullptr;
+    for (const BenchRow& row : r.rows)
+        if (hasFrame(row, r) &&
+            (!best || row.mean().relMse < best->mean().relMse))
+            best = &row;
+    return best;
+}
+
+// Crops where the settings err most (worstRegions over their frames), each with the input, every
+// setting (and its intermediates), the reference, the best setting's difference to it and an A/B
+// flip between the two.
+std::string worstCrops(const BenchReport& r) {
+    const BenchRow* best = bestRow(r);
+    if (!best) return "";
+    std::vector<ImageView> outs;
+    for (const BenchRow& row : r.rows)
+        if (hasFrame(row, r))
+            outs.push_back(row.frame.view());
+    // A third of the frame's short side at most: several crops even on a small frame.
+    const int side = std::min(r.referenceFrame.width(), r.referenceFrame.height());
+    const int size = std::min(r.cropSize, std::max(16, side / 3));
+    const std::vector<CropRect> regions =
+        worstRegions(outs, r.referenceFrame.view(), size, r.cropCount);
+    std::ostringstream os;
+    os << "<h2>Crops</h2>\n<p>Frame " << r.cropFrameNumber << ": the " << regions.size()
+       << " windows where the settings' error (relative squared error, averaged over the "
+          "settings) is worst, worst first. The difference image is the best setting's ("
+       << escapeXml(best->name) << "); click its A/B picture to flip to the reference.</p>\n";
+    for (size_t k = 0; k < regions.size(); ++k) {
+        const CropRect& c = regions[k];
+        os << "<h3>Crop " << k + 1 << ": x " << c.x0 << "-" << c.x0 + c.w - 1 << ", y " << c.y0
+           << "-" << c.y0 + c.h - 1 << "</h3>\n<div>\n";
+        if (r.noisyFrame.extent() == r.referenceFrame.extent())  // both given
+            os << cropFigure(cut(r.noisyFrame, c), r.toneMap, "noisy input");
+        for (const BenchRow& row : r.rows) {
+            if (!hasFrame(row, r)) continue;
+            for (const auto& [name, frame] : row.intermediateFrames)
+                os << cropFigure(cut(frame, c), r.toneMap, row.name + ": " + name);
+            os << cropFigure(cut(row.frame, c), r.toneMap, row.name);
+        }
+        const Image ref = cut(r.referenceFrame, c), out = cut(best->frame, c);
+        double gain = 1;
+        const Image diff = difference(out, ref, gain);
+        os << cropFigure(ref, r.toneMap, "reference")
+           << cropFigure(diff, ToneMap::Clamp,
+                         "|" + best->name + " - reference| x" + num(gain, "%.3g"))
+           << flipFigure(out, ref, r.toneMap, best->name) << "</div>\n";
+    }
+    return os.str();
+}
+
+// Flips an A/B picture between its two images (and names) on a click.
+const char* const kFlip = R"(<script>
+for (const img of document.querySelectorAll('img.flip')) img.addEventListener('click', () => {
+  [img.src, img.dataset.other] = [img.dataset.other, img.src];
+  const [a, b] = img.dataset.names.split('|');
+  img.dataset.names = b + '|' + a;
+  img.nextElementSibling.textContent = 'A/B: ' + b + ' (click: ' + a + ')';
+});
+</script>
+)";
+
 }  // namespace
 
 std::string benchHtml(const BenchReport& r, const std::vector<size_t>& pareto) {
@@ -442,7 +560,9 @@ std::string benchHtml(const BenchReport& r, const std::vector<size_t>& pareto) {
         anyCrop = anyCrop || row.crop.extent().pixels() > 0;
         intermediates = intermediates || !row.intermediateCrops.empty();
     }
-    if (anyCrop) {
+    if (r.referenceFrame.extent().pixels() > 0 && bestRow(r)) {
+        os << worstCrops(r) << kFlip;
+    } else if (anyCrop) {
         os << "<h2>Crops</h2>\n<p>" << escapeXml(r.cropNote) << "</p>\n<div>\n";
         os << cropFigure(r.noisyCrop, r.toneMap, "noisy input");
         if (intermediates) {  // one line per setting: what led to its output, then the output

@@ -1,5 +1,5 @@
-// kestrel bench --crop-dump: chosen intermediate resources shown as crops beside each setting's
-// output in the HTML report, on a tiny generated scene.
+// kestrel bench on a tiny generated scene: --crop-dump intermediates beside each setting's output
+// in the crops where the error is worst, per-pass times that add up, --rounds.
 #include <map>
 #include <sstream>
 
@@ -38,7 +38,7 @@ std::string captionLike(const std::map<std::string, std::string>& f, const std::
 
 TEST(CliBench, CropDumpShowsIntermediatesBesideTheOutput) {
     Sandbox box;
-    if (!makeScene(box, box.work() / "scene", 32, 24, 4))
+    if (!makeScene(box, box.work() / "scene", 48, 32, 4))
         GTEST_SKIP() << "no scenegen in this build";
     auto bench = [&](std::vector<std::string> extra) {
         std::vector<std::string> args = {
@@ -64,6 +64,13 @@ TEST(CliBench, CropDumpShowsIntermediatesBesideTheOutput) {
     EXPECT_FALSE(f.at(atrous) == f.at("svgf")) << atrous << " is the output's crop";
     // The unfiltered-input row computes neither.
     EXPECT_TRUE(captionLike(f, "input (unfiltered): ", "").empty());
+    // Crops where the error is worst: several (a 48x32 frame holds two 16x16 windows side by
+    // side wherever the worst is), a difference image and an A/B flip of the best setting against the reference.
+    const std::string html = readText(box.work() / "rep" / "bench.html");
+    EXPECT_NE(html.find("<h3>Crop 2: x "), std::string::npos);
+    EXPECT_TRUE(f.count("noisy input") && f.count("reference"));
+    EXPECT_NE(html.find("alt='|svgf - reference| x"), std::string::npos);
+    EXPECT_NE(html.find("<img class='flip' alt='A/B: svgf | reference'"), std::string::npos);
 
     const CliResult typo = bench({"--crop-dump", "*atrous9.color"});
     EXPECT_EQ(typo.code, 2) << typo.all();

@@ -268,3 +268,45 @@ TEST(BenchReport, TimingSpreadAndTiesWithinNoise) {
     EXPECT_NE(md.find("| 1.00 | 0.90-1.20 | * |"), std::string::npos) << md;
     EXPECT_NE(slurp(files.csv).find(",0.9,1.2\n"), std::string::npos);
 }
+
+TEST(BenchReport, CropsWhereTheErrorIsWorst) {
+    // A 96x64 frame, outputs equal to the reference but for a strong error at (70, 40) and a
+    // weaker one at (10, 10): the worst window holds the first, the next the second, none
+    // overlapping; a flat frame elsewhere would have been the old middle crop.
+    const int w = 96, h = 64;
+    Image ref = gradient(w, h), a = gradient(w, h), b = gradient(w, h);
+    for (int c = 0; c < 3; ++c) {
+        a.at(c, 70, 40) += 5, b.at(c, 71, 41) += 5;
+        a.at(c, 10, 10) += 1;
+    }
+    const std::vector<CropRect> regions = worstRegions({a.view(), b.view()}, ref.view(), 16, 3);
+    ASSERT_EQ(regions.size(), 3u);
+    auto holds = [](const CropRect& r, int x, int y) {
+        return x >= r.x0 && x < r.x0 + r.w && y >= r.y0 && y < r.y0 + r.h;
+    };
+    EXPECT_TRUE(holds(regions[0], 70, 40) && holds(regions[0], 71, 41));
+    EXPECT_TRUE(holds(regions[1], 10, 10));
+    for (size_t i = 0; i < regions.size(); ++i) {
+        EXPECT_EQ(regions[i].w, 16);
+        for (size_t j = i + 1; j < regions.size(); ++j)
+            EXPECT_FALSE(regions[i].x0 < regions[j].x0 + 16 && regions[j].x0 < regions[i].x0 + 16 &&
+                         regions[i].y0 < regions[j].y0 + 16 && regions[j].y0 < regions[i].y0 + 16);
+    }
+
+    BenchReport r;
+    r.frames = {1, 2, 3};
+    r.rows = rows({{"A", 2, 0.02}, {"B", 3, 0.01}, {"input", 0, 0.5}});
+    r.rows[0].frame = gradient(w, h), r.rows[1].frame = gradient(w, h);
+    r.rows[1].frame.at(0, 70, 40) += 5;
+    r.rows[2].inputOnly = true;
+    r.referenceFrame = gradient(w, h);
+    r.noisyFrame = gradient(w, h);
+    r.cropFrameNumber = 2;
+    const std::string html = slurp(writeBenchReport(r, testutil::tempDir() / "crops").html);
+    EXPECT_NE(html.find("<h3>Crop 1: x "), std::string::npos);
+    EXPECT_NE(html.find("<h3>Crop 3: x "), std::string::npos);
+    EXPECT_EQ(html.find("<h3>Crop 4: x "), std::string::npos);
+    EXPECT_NE(html.find("alt='|B - reference| x"), std::string::npos) << "the difference image";
+    EXPECT_NE(html.find("<img class='flip' alt='A/B: B | reference'"), std::string::npos);
+    EXPECT_NE(html.find("data-other='data:image/png;base64,"), std::string::npos);
+}

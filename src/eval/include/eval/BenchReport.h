@@ -37,6 +37,11 @@ struct BenchRow {
     /// Optional: the same crop of intermediate resources ("pass.port", linear RGB), shown beside
     /// the output crop (kestrel bench --crop-dump).
     std::vector<std::pair<std::string, Image>> intermediateCrops;
+    /// Optional: the whole output frame the crops come from (linear RGB), and the same frame of
+    /// the intermediates; given with BenchReport::referenceFrame, the report cuts its crops
+    /// where the settings' error is worst instead of showing `crop`.
+    Image frame;
+    std::vector<std::pair<std::string, Image>> intermediateFrames;
     /// The unfiltered input (the error of doing nothing): plotted off the error axis, so the
     /// settings being compared spread over it instead of sitting on its bottom edge.
     bool inputOnly = false;
@@ -52,7 +57,23 @@ struct BenchReport {
     ToneMap toneMap = ToneMap::Reinhard;  ///< of the metrics and of the crops' PNGs
     std::string cropNote;                 ///< e.g. "frame 8, x 100-227, y 40-167"
     Image noisyCrop, referenceCrop;       ///< optional, linear RGB, same crop as the rows'
+    /// Optional, with the rows' `frame`s: the whole frame of the crops, its number, and how
+    /// many crops of what side (at most a third of the frame's short side, at least 16) to cut
+    /// where the settings err most.
+    Image noisyFrame, referenceFrame;
+    int64_t cropFrameNumber = 0;
+    int cropCount = 3, cropSize = 96;
 };
+
+/// A window of a frame.
+struct CropRect {
+    int x0 = 0, y0 = 0, w = 0, h = 0;
+};
+/// Up to `count` windows of side `size` (clipped to the frame) where the outputs' mean relative
+/// squared error against the reference, sum of (out - ref)^2 / (ref^2 + 0.01), is highest: worst
+/// first, none overlapping another. The windows are searched on a grid of size/4 pixels.
+std::vector<CropRect> worstRegions(const std::vector<ImageView>& outputs, const ImageView& ref,
+                                   int size, int count);
 
 /// Pairs (i, j) of Pareto-front rows, i faster than j by the median, whose times overlap within
 /// their round-to-round spread (msMin-msMax): between them the pick is by error only (j).
