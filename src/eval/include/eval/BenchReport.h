@@ -4,13 +4,17 @@
 //
 // writeBenchReport(report, dir) writes
 //   bench.md            summary and per-pass tables (Markdown)
-//   bench.csv           one line per setting: mean metrics, ms per frame, on the Pareto front
+//   bench.csv           one line per setting: mean metrics, ms per frame, on the Pareto front,
+//                       the spread of ms per frame over the rounds (msMin, msMax)
 //   bench_frames.csv    one line per setting and frame: metrics of that frame
-//   bench_passes.csv    one line per setting and pass: ms
+//   bench_passes.csv    one line per setting and pass: ms (of the setting's median frame)
 //   bench.html          self-contained: the tables, inline SVG plots (mean relMSE, log scale,
-//                       versus ms per frame with the Pareto front; relMSE per frame; per-pass time
-//                       as stacked bars) and side-by-side crops as PNG data URIs (with
-//                       intermediates: one line per setting, its intermediates then its output)
+//                       versus ms per frame with the Pareto front, the spread as whiskers, the
+//                       input row off scale, labels that never overlap; relMSE per frame;
+//                       per-pass time as stacked bars by chain and stage) and crops as PNG data
+//                       URIs: where the error is worst when the rows' frames are given (with a
+//                       difference image and an A/B flip), else the rows' `crop`s; a script
+//                       that records in <body data-label-check> whether any two labels overlap
 #include <kestrel/Image.h>
 
 #include <cstdint>
