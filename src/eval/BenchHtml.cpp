@@ -244,13 +244,18 @@ std::string errorVersusTime(const BenchReport& r, const std::vector<size_t>& par
     return os.str();
 }
 
-// relMSE (log) per frame, one line per setting.
+// relMSE (log) per frame, one line per setting. As in errorVersusTime the axis fits the filtered
+// settings; the unfiltered input is named in the legend as off scale instead of drawn.
 std::string errorPerFrame(const BenchReport& r) {
     Axes a;
     size_t n = 0;
     double eLo = 1e300, eHi = 0;
+    const bool anyFiltered =
+        std::any_of(r.rows.begin(), r.rows.end(), [](const BenchRow& row) { return !row.inputOnly; });
+    auto offScale = [&](const BenchRow& row) { return anyFiltered && row.inputOnly; };
     for (const BenchRow& row : r.rows) {
         n = std::max(n, row.errors.size());
+        if (offScale(row)) continue;
         for (const FrameMetrics& e : row.errors)
             eLo = std::min(eLo, e.relMse), eHi = std::max(eHi, e.relMse);
     }
@@ -266,11 +271,17 @@ std::string errorPerFrame(const BenchReport& r) {
     a.draw(os, "frame", "relMSE (log)");
     for (size_t i = 0; i < r.rows.size(); ++i) {
         const BenchRow& row = r.rows[i];
+        const double ly = a.top + 14 + 14 * double(i);
+        if (offScale(row)) {
+            os << "<text x='" << a.left + 8 << "' y='" << ly << "' fill='" << colour(i) << "'>"
+               << escapeXml(row.name) << ": " << psnrText(row) << ", off scale</text>\n";
+            continue;
+        }
         os << "<polyline fill='none' stroke-width='2' stroke='" << colour(i) << "' points='";
         for (size_t f = 0; f < row.errors.size(); ++f)
             os << a.px(frameOf(f)) << ',' << a.py(row.errors[f].relMse) << ' ';
         os << "'><title>" << escapeXml(row.name) << "</title></polyline>\n";
-        os << "<text x='" << a.left + 8 << "' y='" << a.top + 14 + 14 * double(i) << "' fill='"
+        os << "<text x='" << a.left + 8 << "' y='" << ly << "' fill='"
            << colour(i) << "'>" << escapeXml(row.name) << "</text>\n";
     }
     os << "</svg>\n";

@@ -194,6 +194,11 @@ TEST(BenchReport, InputRowOffScaleAndLabelsApart) {
     const auto [lo, hi] = std::minmax_element(ys.begin(), ys.end());
     EXPECT_GT(*hi - *lo, 80.0) << "settings squeezed on a few pixels of the error axis";
     EXPECT_NE(html.find("noisy input: 30.0 dB, off scale"), std::string::npos);
+    // The error-per-frame plot too: the input named off scale, no line of it.
+    const std::string perFrame = html.substr(html.find("<h2>Error per frame</h2>"));
+    EXPECT_NE(perFrame.find("noisy input: 30.0 dB, off scale"), std::string::npos);
+    EXPECT_EQ(perFrame.find("<title>noisy input</title></polyline>"), std::string::npos);
+    EXPECT_NE(perFrame.find("<title>svgf-fast</title></polyline>"), std::string::npos);
 
     const std::vector<Label> labels = firstPlotLabels(html);
     ASSERT_GE(labels.size(), 15u);
