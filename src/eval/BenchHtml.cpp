@@ -266,22 +266,32 @@ std::string errorPerFrame(const BenchReport& r) {
     a.logY = true;
     a.integerX = true;
     logRange(eLo, eHi, a);
+    // The legend right of the plot, not over its lines.
+    auto legendText = [&](const BenchRow& row) {
+        return offScale(row) ? row.name + ": " + psnrText(row) + ", off scale" : row.name;
+    };
+    double legendWidth = 0;
+    for (const BenchRow& row : r.rows) legendWidth = std::max(legendWidth, textWidth(legendText(row)));
+    Axes page = a;
+    page.width += 12 + legendWidth;
+    page.height = std::max(a.height, 14.0 * double(r.rows.size()) + 10);
+    const double lx = a.left + a.width + 12;
     std::ostringstream os;
-    os << svgOpen(a);
+    os << svgOpen(page);
     a.draw(os, "frame", "relMSE (log)");
     for (size_t i = 0; i < r.rows.size(); ++i) {
         const BenchRow& row = r.rows[i];
-        const double ly = a.top + 14 + 14 * double(i);
+        const double ly = a.top + 10 + 14 * double(i);
         if (offScale(row)) {
-            os << "<text x='" << a.left + 8 << "' y='" << ly << "' fill='" << colour(i) << "'>"
-               << escapeXml(row.name) << ": " << psnrText(row) << ", off scale</text>\n";
+            os << "<text x='" << lx << "' y='" << ly << "' fill='" << colour(i) << "'>"
+               << escapeXml(legendText(row)) << "</text>\n";
             continue;
         }
         os << "<polyline fill='none' stroke-width='2' stroke='" << colour(i) << "' points='";
         for (size_t f = 0; f < row.errors.size(); ++f)
             os << a.px(frameOf(f)) << ',' << a.py(row.errors[f].relMse) << ' ';
         os << "'><title>" << escapeXml(row.name) << "</title></polyline>\n";
-        os << "<text x='" << a.left + 8 << "' y='" << ly << "' fill='"
+        os << "<text x='" << lx << "' y='" << ly << "' fill='"
            << colour(i) << "'>" << escapeXml(row.name) << "</text>\n";
     }
     os << "</svg>\n";
