@@ -402,9 +402,11 @@ std::string cropFigure(const ImageView& img, ToneMap t, const std::string& label
            "</figcaption></figure>\n";
 }
 
-// Measures, as the page's last script (layout is then complete for the plots), every text of every plot and writes into
-// <body data-label-check> "ok N" (N texts, no two overlapping) or the overlapping pairs: what
-// tests/cli/report_browser_test.sh reads from headless chromium's --dump-dom.
+// Measures, as the page's last script (layout is then complete for the plots), every text of
+// every plot and writes into <body data-label-check> "ok N" (N texts, no two overlapping) or the
+// overlapping pairs; once loaded, data-images "decoded/all" and data-flip "ok" when the first
+// A/B picture flips and back on two clicks: what tests/cli/report_browser_test.sh reads from
+// headless chromium's --dump-dom.
 const char* const kLabelCheck = R"(<script>
 (() => {
   const bad = [];
@@ -420,6 +422,19 @@ const char* const kLabelCheck = R"(<script>
   }
   document.body.dataset.labelCheck = bad.length ? 'overlap: ' + bad.join('; ') : 'ok ' + n;
 })();
+addEventListener('load', () => {
+  const imgs = [...document.images];
+  document.body.dataset.images =
+    imgs.filter(i => i.complete && i.naturalWidth > 0).length + '/' + imgs.length;
+  const flip = document.querySelector('img.flip');  // two clicks: flipped and back
+  if (flip) {
+    const a = flip.src;
+    flip.click();
+    const flipped = flip.src !== a;
+    flip.click();
+    document.body.dataset.flip = flipped && flip.src === a ? 'ok' : 'broken';
+  }
+});
 </script>
 )";
 

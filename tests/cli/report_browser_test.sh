@@ -2,8 +2,10 @@
 # The bench report in a real browser: benches a tiny generated scene, renders bench.html in
 # Debian's headless chromium and reads what the page's own check (the script at the end of
 # bench.html) wrote into <body data-label-check=...>: "ok N" when it measured N labels and no two
-# overlap, else the overlapping pairs. Fails when the page does not render or a label overlaps
-# another; exit 77 (ctest SKIP_RETURN_CODE) where chromium is not installed.
+# overlap, else the overlapping pairs; data-images (decoded/all) and data-flip (the A/B picture
+# flips on a click). Fails when the page does not render, a label overlaps another, a crop does
+# not decode or the flip does not work; exit 77 (ctest SKIP_RETURN_CODE) where chromium is not
+# installed.
 #
 #   bash tests/cli/report_browser_test.sh KESTREL_BIN SOURCE_DIR
 set -uo pipefail
@@ -42,4 +44,11 @@ echo "$check"
 n=${check#*ok }
 n=${n%\"}
 ((n >= 5)) || fail "only $n labels measured: the plots did not render"
-echo "PASS: bench.html rendered in $(basename "$browser"), $n labels, none overlapping"
+images=$(grep -o 'data-images="[^"]*"' dom.html | head -1)
+images=${images#*=\"}
+images=${images%\"}
+[[ -n $images && ${images%/*} == "${images#*/}" && ${images#*/} -gt 0 ]] ||
+    fail "crop images not all decoded: ${images:-no data-images in the DOM}"
+grep -q 'data-flip="ok"' dom.html || fail "the A/B picture does not flip on a click"
+echo "PASS: bench.html rendered in $(basename "$browser"), $n labels, none overlapping;" \
+    "$images images decoded; the A/B flip works"
