@@ -154,7 +154,9 @@ Image cropOf(const ImageView& img, int x0, int y0, int w, int h) {
 
 /// A whole frame as linear RGB (Float3): the report cuts its crops from it where the error is
 /// worst, which is known only once every setting has run.
-Image wholeFrame(const ImageView& img) { return cropOf(img, 0, 0, img.width(), img.height()); }
+Image wholeFrame(const ImageView& img) {
+    return cropOf(img, 0, 0, img.width(), img.height());
+}
 
 /// What every setting shares: the input, reference, frames and the report being filled.
 struct BenchRun {

@@ -66,9 +66,9 @@ struct Axes {
                 const double v = std::log10(m) + d;
                 if (v < ymin - 1e-9 || v > ymax + 1e-9) continue;
                 const double y = top + (ymax - v) / (ymax - ymin) * height;
-                os << "<line x1='" << left << "' x2='" << left + width << "' y1='" << y
-                   << "' y2='" << y << "' stroke='#ddd'/><text x='" << left - 6 << "' y='"
-                   << y + 4 << "' text-anchor='end'>"
+                os << "<line x1='" << left << "' x2='" << left + width << "' y1='" << y << "' y2='"
+                   << y << "' stroke='#ddd'/><text x='" << left - 6 << "' y='" << y + 4
+                   << "' text-anchor='end'>"
                    << (m == 1 ? "1e" + std::to_string(d) : num(m * std::pow(10.0, d), "%.3g"))
                    << "</text>\n";
             }
@@ -121,7 +121,9 @@ struct Box {
     bool overlaps(const Box& o) const { return x0 < o.x1 && o.x0 < x1 && y0 < o.y1 && o.y0 < y1; }
     bool inside(const Box& o) const { return x0 >= o.x0 && x1 <= o.x1 && y0 >= o.y0 && y1 <= o.y1; }
 };
-double textWidth(const std::string& s) { return 6.5 * double(s.size()) + 2; }
+double textWidth(const std::string& s) {
+    return 6.5 * double(s.size()) + 2;
+}
 
 // Places labels next to their points without overlapping each other or any point: tries eight
 // positions around the point; a label that fits nowhere is replaced by its number (also tried
@@ -134,13 +136,14 @@ public:
     /// The text's anchor (x, baseline y) at one of the free positions, or nothing.
     std::optional<std::pair<double, double>> place(double px, double py, const std::string& text) {
         const double w = textWidth(text), h = 13, d = 7;
-        const std::pair<double, double> offsets[] = {{d, -d - h},      {d, d},        {-d - w, -d - h},
-                                                     {-d - w, d},      {d, -h / 2},   {-d - w, -h / 2},
-                                                     {-w / 2, -d - h}, {-w / 2, d}};
+        const std::pair<double, double> offsets[] = {
+            {d, -d - h}, {d, d},           {-d - w, -d - h}, {-d - w, d},
+            {d, -h / 2}, {-d - w, -h / 2}, {-w / 2, -d - h}, {-w / 2, d}};
         for (const auto& [dx, dy] : offsets) {
             const Box b{px + dx, py + dy, px + dx + w, py + dy + h};
             if (!b.inside(area_)) continue;
-            if (std::any_of(taken_.begin(), taken_.end(), [&](const Box& t) { return t.overlaps(b); }))
+            if (std::any_of(taken_.begin(), taken_.end(),
+                            [&](const Box& t) { return t.overlaps(b); }))
                 continue;
             taken_.push_back(b);
             return std::make_pair(b.x0 + 1, b.y1 - 3);
@@ -153,14 +156,17 @@ private:
     std::vector<Box> taken_;
 };
 
-std::string psnrText(const BenchRow& row) { return num(row.mean().psnr, "%.1f") + " dB"; }
+std::string psnrText(const BenchRow& row) {
+    return num(row.mean().psnr, "%.1f") + " dB";
+}
 
 // Mean relMSE (log) versus ms per frame; the Pareto front as a dashed staircase. The axes cover
 // the filtered settings only: the unfiltered input, usually orders of magnitude worse, is an
 // arrow at the top edge saying where it is.
 std::string errorVersusTime(const BenchReport& r, const std::vector<size_t>& pareto) {
     std::vector<size_t> onAxis, offScale;
-    for (size_t i = 0; i < r.rows.size(); ++i) (r.rows[i].inputOnly ? offScale : onAxis).push_back(i);
+    for (size_t i = 0; i < r.rows.size(); ++i)
+        (r.rows[i].inputOnly ? offScale : onAxis).push_back(i);
     if (onAxis.empty()) std::swap(onAxis, offScale);  // nothing else: the input is the plot
     Axes a;
     a.top = 40;  // room for the off-scale arrows and their labels
@@ -199,8 +205,9 @@ std::string errorVersusTime(const BenchReport& r, const std::vector<size_t>& par
         marks << "' fill='none' stroke='#222' stroke-dasharray='5,4'><title>Pareto "
                  "front</title></path>\n";
     }
-    for (size_t i : onAxis) labels.addObstacle({a.px(r.rows[i].msPerFrame) - 6, a.py(err[i]) - 6,
-                                                a.px(r.rows[i].msPerFrame) + 6, a.py(err[i]) + 6});
+    for (size_t i : onAxis)
+        labels.addObstacle({a.px(r.rows[i].msPerFrame) - 6, a.py(err[i]) - 6,
+                            a.px(r.rows[i].msPerFrame) + 6, a.py(err[i]) + 6});
     for (size_t i : offScale) {  // an up arrow on the top edge
         const double x = std::min(a.px(r.rows[i].msPerFrame), a.left + a.width - 6);
         labels.addObstacle({x - 6, a.top - 14, x + 6, a.top});
@@ -238,8 +245,9 @@ std::string errorVersusTime(const BenchReport& r, const std::vector<size_t>& par
     a.draw(os, "ms per frame", "relMSE (log)");
     os << marks.str();
     for (size_t k = 0; k < legendLines.size(); ++k)
-        os << "<text class='lbl' x='" << a.left << "' y='" << a.top + a.height + 62 + 16.0 * double(k)
-           << "'>" << escapeXml(legendLines[k]) << "</text>\n";
+        os << "<text class='lbl' x='" << a.left << "' y='"
+           << a.top + a.height + 62 + 16.0 * double(k) << "'>" << escapeXml(legendLines[k])
+           << "</text>\n";
     os << "</svg>\n";
     return os.str();
 }
@@ -250,8 +258,8 @@ std::string errorPerFrame(const BenchReport& r) {
     Axes a;
     size_t n = 0;
     double eLo = 1e300, eHi = 0;
-    const bool anyFiltered =
-        std::any_of(r.rows.begin(), r.rows.end(), [](const BenchRow& row) { return !row.inputOnly; });
+    const bool anyFiltered = std::any_of(r.rows.begin(), r.rows.end(),
+                                         [](const BenchRow& row) { return !row.inputOnly; });
     auto offScale = [&](const BenchRow& row) { return anyFiltered && row.inputOnly; };
     for (const BenchRow& row : r.rows) {
         n = std::max(n, row.errors.size());
@@ -271,7 +279,8 @@ std::string errorPerFrame(const BenchReport& r) {
         return offScale(row) ? row.name + ": " + psnrText(row) + ", off scale" : row.name;
     };
     double legendWidth = 0;
-    for (const BenchRow& row : r.rows) legendWidth = std::max(legendWidth, textWidth(legendText(row)));
+    for (const BenchRow& row : r.rows)
+        legendWidth = std::max(legendWidth, textWidth(legendText(row)));
     Axes page = a;
     page.width += 12 + legendWidth;
     page.height = std::max(a.height, 14.0 * double(r.rows.size()) + 10);
@@ -291,8 +300,8 @@ std::string errorPerFrame(const BenchReport& r) {
         for (size_t f = 0; f < row.errors.size(); ++f)
             os << a.px(frameOf(f)) << ',' << a.py(row.errors[f].relMse) << ' ';
         os << "'><title>" << escapeXml(row.name) << "</title></polyline>\n";
-        os << "<text x='" << lx << "' y='" << ly << "' fill='"
-           << colour(i) << "'>" << escapeXml(row.name) << "</text>\n";
+        os << "<text x='" << lx << "' y='" << ly << "' fill='" << colour(i) << "'>"
+           << escapeXml(row.name) << "</text>\n";
     }
     os << "</svg>\n";
     return os.str();
@@ -369,9 +378,11 @@ std::string passBreakdown(const BenchReport& r) {
            << escapeXml(r.rows[i].name) << "</text>\n";
         double t = 0;
         for (const Segment& s : bars[i]) {
-            const size_t k = size_t(std::find(stages.begin(), stages.end(), s.stage) - stages.begin());
+            const size_t k =
+                size_t(std::find(stages.begin(), stages.end(), s.stage) - stages.begin());
             os << "<rect x='" << a.px(t) << "' y='" << y << "' width='" << a.px(t + s.ms) - a.px(t)
-               << "' height='18' fill='" << stageColour(k) << "' stroke='#fff' stroke-width='0.5'><title>"
+               << "' height='18' fill='" << stageColour(k)
+               << "' stroke='#fff' stroke-width='0.5'><title>"
                << escapeXml(s.chain.empty() ? s.stage : s.chain + " \u00b7 " + s.stage) << " ("
                << s.passes << (s.passes == 1 ? " pass" : " passes") << "): " << num(s.ms, "%.3f")
                << " ms</title></rect>\n";
@@ -496,9 +507,7 @@ bool hasFrame(const BenchRow& row, const BenchReport& r) {
 const BenchRow* bestRow(const BenchReport& r) {
     const BenchRow* best = nullptr;
     for (const BenchRow& row : r.rows)
-        if (hasFrame(row, r) &&
-            (!best || row.mean().relMse < best->mean().relMse))
-            best = &row;
+        if (hasFrame(row, r) && (!best || row.mean().relMse < best->mean().relMse)) best = &row;
     return best;
 }
 
@@ -510,8 +519,7 @@ std::string worstCrops(const BenchReport& r) {
     if (!best) return "";
     std::vector<ImageView> outs;
     for (const BenchRow& row : r.rows)
-        if (hasFrame(row, r))
-            outs.push_back(row.frame.view());
+        if (hasFrame(row, r)) outs.push_back(row.frame.view());
     // A third of the frame's short side at most: several crops even on a small frame.
     const int side = std::min(r.referenceFrame.width(), r.referenceFrame.height());
     const int size = std::min(r.cropSize, std::max(16, side / 3));

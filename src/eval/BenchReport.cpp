@@ -53,8 +53,8 @@ std::string markdown(const BenchReport& r, const std::vector<size_t>& pareto) {
         os << "| " << row.name << " | " << fmt("%.6g", m.relMse) << " | " << fmt("%.2f", m.psnr)
            << " | " << fmt("%.4f", m.ssim) << " | " << (m.temporal ? fmt("%.6f", *m.temporal) : "-")
            << " | " << fmt("%.0f", m.speckles) << " | " << fmt("%.2f", row.msPerFrame) << " | "
-           << (row.msMax > 0 ? fmt("%.2f", row.msMin) + "-" + fmt("%.2f", row.msMax) : "-")
-           << " | " << (front ? "*" : "") << " |\n";
+           << (row.msMax > 0 ? fmt("%.2f", row.msMin) + "-" + fmt("%.2f", row.msMax) : "-") << " | "
+           << (front ? "*" : "") << " |\n";
     }
     for (const auto& [i, j] : timingTies(r.rows, pareto))
         os << "\nTie: " << tieText(r.rows[i], r.rows[j]) << ".\n";

@@ -65,7 +65,8 @@ TEST(CliBench, CropDumpShowsIntermediatesBesideTheOutput) {
     // The unfiltered-input row computes neither.
     EXPECT_TRUE(captionLike(f, "input (unfiltered): ", "").empty());
     // Crops where the error is worst: several (a 48x32 frame holds two 16x16 windows side by
-    // side wherever the worst is), a difference image and an A/B flip of the best setting against the reference.
+    // side wherever the worst is), a difference image and an A/B flip of the best setting against
+    // the reference.
     const std::string html = readText(box.work() / "rep" / "bench.html");
     EXPECT_NE(html.find("<h3>Crop 2: x "), std::string::npos);
     EXPECT_TRUE(f.count("noisy input") && f.count("reference"));
@@ -86,10 +87,10 @@ TEST(CliBench, PassTimesAddUpToTheTable) {
     Sandbox box;
     if (!makeScene(box, box.work() / "scene", 32, 24, 6))
         GTEST_SKIP() << "no scenegen in this build";
-    const CliResult r = box.run({"bench", std::string(KESTREL_SOURCE_DIR) + "/graphs/svgf.json",
-                                 "--input", "scene/noisy/frame_####.exr", "--reference",
-                                 "scene/ref/frame_####.exr", "--warmup", "1", "--threads", "1",
-                                 "--report", "rep"});
+    const CliResult r =
+        box.run({"bench", std::string(KESTREL_SOURCE_DIR) + "/graphs/svgf.json", "--input",
+                 "scene/noisy/frame_####.exr", "--reference", "scene/ref/frame_####.exr",
+                 "--warmup", "1", "--threads", "1", "--report", "rep"});
     ASSERT_EQ(r.code, 0) << r.all();
     std::map<std::string, double> sums;
     std::istringstream passes(readText(box.work() / "rep" / "bench_passes.csv"));
@@ -119,11 +120,11 @@ TEST(CliBench, RoundsGiveEachSettingItsSpread) {
     Sandbox box;
     if (!makeScene(box, box.work() / "scene", 32, 24, 4))
         GTEST_SKIP() << "no scenegen in this build";
-    const CliResult r = box.run({"bench", std::string(KESTREL_SOURCE_DIR) + "/graphs/svgf.json",
-                                 std::string(KESTREL_SOURCE_DIR) + "/graphs/svgf-fast.json",
-                                 "--input", "scene/noisy/frame_####.exr", "--reference",
-                                 "scene/ref/frame_####.exr", "--warmup", "1", "--threads", "1",
-                                 "--rounds", "3", "--report", "rep"});
+    const CliResult r =
+        box.run({"bench", std::string(KESTREL_SOURCE_DIR) + "/graphs/svgf.json",
+                 std::string(KESTREL_SOURCE_DIR) + "/graphs/svgf-fast.json", "--input",
+                 "scene/noisy/frame_####.exr", "--reference", "scene/ref/frame_####.exr",
+                 "--warmup", "1", "--threads", "1", "--rounds", "3", "--report", "rep"});
     ASSERT_EQ(r.code, 0) << r.all();
     std::istringstream table(readText(box.work() / "rep" / "bench.csv"));
     std::string line;
