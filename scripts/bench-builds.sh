@@ -23,7 +23,7 @@ declare -A best
 for ((r = 1; r <= rounds; r++)); do
   for build in "$a" "$b"; do
     row=$("$build/bin/kestrel" bench "graphs/$graph.json" --input "$scene/noisy/frame_####.exr" \
-            --threads 2 --no-input-row --warmup 2 2>/dev/null | grep -E "^$graph " | head -1)
+            --threads 2 --no-input-row --warmup 2 --rounds 1 2>/dev/null | grep -E "^$graph " | head -1)
     ms=$(awk '{print $(NF-1)}' <<<"$row")
     echo "round $r $build: $ms ms/frame (busy clock $(bash scripts/lib/clock-probe.sh) GHz)"
     if [[ -z ${best[$build]:-} ]] || awk -v m="$ms" -v b="${best[$build]}" 'BEGIN { exit !(m < b) }'; then

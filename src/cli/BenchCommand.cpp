@@ -36,6 +36,7 @@ struct BenchOptions {
     std::string toneMap = "reinhard";
     int threads = 0;
     int warmup = 2;
+    int rounds = 3;  ///< each setting's frames run once per round, settings alternating
     bool noInputRow = false;
     bool noFuse = false;
     std::vector<std::string> cropDumps;  ///< intermediates shown as crops in the report
@@ -151,21 +152,11 @@ Image cropOf(const ImageView& img, int x0, int y0, int w, int h) {
     return c;
 }
 
-/// The report's crop: the middle 128x128 (or less) of a frame.
-struct CropBox {
-    int x0, y0, w, h;
-    explicit CropBox(Extent e)
-        : x0((e.width - std::min(128, e.width)) / 2),
-          y0((e.height - std::min(128, e.height)) / 2),
-          w(std::min(128, e.width)),
-          h(std::min(128, e.height)) {}
-    Image of(const ImageView& img) const { return cropOf(img, x0, y0, w, h); }
-    std::string note(int64_t frame) const {
-        return "frame " + std::to_string(frame) + ", x " + std::to_string(x0) + "-" +
-               std::to_string(x0 + w - 1) + ", y " + std::to_string(y0) + "-" +
-               std::to_string(y0 + h - 1);
-    }
-};
+/// A whole frame as linear RGB (Float3): the report cuts its crops from it where the error is
+/// worst, which is known only once every setting has run.
+Image wholeFrame(const ImageView& img) {
+    return cropOf(img, 0, 0, img.width(), img.height());
+}
 
 /// What every setting shares: the input, reference, frames and the report being filled.
 struct BenchRun {
@@ -249,39 +240,44 @@ Prepared prepare(const Setting& s, const BenchRun& b) {
 /// reference, and the crops of the output and of the chosen intermediates.
 class BenchFrames : public SequenceObserver {
 public:
-    BenchFrames(BenchRun& b, const Setting& s, const Prepared& p, eval::BenchRow& row)
-        : b_(b), s_(s), p_(p), row_(row) {}
+    /// `measure`: compare with the reference and take the crops (the first round); the other
+    /// rounds only time.
+    BenchFrames(BenchRun& b, const Setting& s, const Prepared& p, eval::BenchRow& row, bool measure)
+        : b_(b), s_(s), p_(p), row_(row), measure_(measure) {}
 
     void frameDone(const FrameRecord& f, size_t i, const Executor& exec) override {
         const bool timed =
             i >= size_t(b_.options.warmup) || b_.frames.size() <= size_t(b_.options.warmup);
         double compute = 0, load = 0;
+        std::map<std::string, double> passes;
         for (const auto& t : f.passes) {
             (p_.sources.count(t.pass) ? load : compute) += t.ms;
-            if (timed) passMs[t.pass].push_back(t.ms);
+            if (!p_.sources.count(t.pass)) passes[t.pass] += t.ms;
         }
         if (timed) {
             computeMs.push_back(compute);
             loadMs.push_back(load);
+            passMs.push_back(std::move(passes));
         }
+        if (!measure_) return;
         ImageView out = exec.output(p_.marked);
-        const CropBox box(out.extent);
-        if (!b_.reference.empty()) compare(out, f.frame, i == b_.cropFrame ? &box : nullptr);
-        if (i == b_.cropFrame) {
-            row_.crop = box.of(out);
+        const bool cropFrame = i == b_.cropFrame;
+        if (!b_.reference.empty()) compare(out, f.frame, cropFrame);
+        if (cropFrame) {
+            row_.frame = wholeFrame(out);
             for (const auto& r : p_.crops)
-                row_.intermediateCrops.push_back({r, box.of(exec.output(r))});
-            b_.report.cropNote = box.note(f.frame);
-            if (s_.inputOnly) b_.report.noisyCrop = box.of(out);
+                row_.intermediateFrames.push_back({r, wholeFrame(exec.output(r))});
+            b_.report.cropFrameNumber = f.frame;
+            if (s_.inputOnly) b_.report.noisyFrame = wholeFrame(out);
         }
     }
 
     std::vector<double> computeMs, loadMs;
-    std::map<std::string, std::vector<double>> passMs;
+    std::vector<std::map<std::string, double>> passMs;  ///< per timed frame, compute passes
 
 private:
     /// Throws FrameError when the reference frame has another size than the output.
-    void compare(const ImageView& out, int64_t frame, const CropBox* box) {
+    void compare(const ImageView& out, int64_t frame, bool cropFrame) {
         const std::string path = expandFramePattern(b_.reference, frame);
         Image ref = eval::readExrRgb(path, b_.options.refLayer);
         if (ref.extent() != out.extent)
@@ -292,46 +288,77 @@ private:
             eval::compareImages(out, ref.view(), b_.toneMap, havePrev_ ? &prev_ : nullptr, &cur_));
         std::swap(prev_, cur_);
         havePrev_ = true;
-        if (box && b_.report.referenceCrop.width() == 0)
-            b_.report.referenceCrop = box->of(ref.view());
+        if (cropFrame && b_.report.referenceFrame.width() == 0)
+            b_.report.referenceFrame = wholeFrame(ref.view());
     }
 
     BenchRun& b_;
     const Setting& s_;
     const Prepared& p_;
     eval::BenchRow& row_;
+    bool measure_;
     eval::FrameImages prev_, cur_;
     bool havePrev_ = false;
 };
 
-/// Runs one prepared setting over the frames and prints its line of the table.
-void runSetting(BenchRun& b, const Setting& s, Prepared& p) {
+/// One setting's timings pooled over the rounds.
+struct Timings {
+    std::vector<double> computeMs, loadMs, roundMedians;
+    std::vector<std::map<std::string, double>> passMs;  ///< per timed frame
+
+    /// The timed frame whose compute time is the median: its per-pass times add up to the
+    /// setting's ms per frame (medians taken pass by pass would not).
+    size_t medianFrame() const {
+        std::vector<size_t> idx(computeMs.size());
+        for (size_t k = 0; k < idx.size(); ++k) idx[k] = k;
+        std::sort(idx.begin(), idx.end(),
+                  [&](size_t a, size_t c) { return computeMs[a] < computeMs[c]; });
+        return idx.empty() ? 0 : idx[idx.size() / 2];
+    }
+};
+
+/// Runs one prepared setting over the frames once (a round): the first round also measures the
+/// error and takes the crops into `row`; every round adds its timings to `t`.
+void runRound(BenchRun& b, const Setting& s, Prepared& p, eval::BenchRow& row, Timings& t,
+              bool first) {
     Parallel parallel(b.options.threads);
     RunInfo info;
     info.graphName = p.compiled->desc().name;
     Executor exec(*p.compiled, parallel, info);
-    eval::BenchRow row;
-    row.name = s.name;
-    BenchFrames frames(b, s, p, row);
+    BenchFrames frames(b, s, p, row, first);
     SequenceOptions so;
     so.frames = b.frames;
     so.writeOutputs = false;  // the writers are detached; nothing is written
     const SequenceResult result = SequenceRunner(*p.compiled, so).run(exec, &frames);
     if (result.end == SequenceEnd::Failed) throw Error(result.error);
-    row.msPerFrame = s.inputOnly ? 0.0 : median(frames.computeMs);
-    for (const auto& n : p.compiled->executionOrder())
-        if (!p.sources.count(n) && frames.passMs.count(n))
-            row.passMs.push_back({n, median(frames.passMs[n])});
+    t.roundMedians.push_back(median(frames.computeMs));
+    t.computeMs.insert(t.computeMs.end(), frames.computeMs.begin(), frames.computeMs.end());
+    t.loadMs.insert(t.loadMs.end(), frames.loadMs.begin(), frames.loadMs.end());
+    t.passMs.insert(t.passMs.end(), frames.passMs.begin(), frames.passMs.end());
+}
+
+/// Fills the row's timings from all rounds and prints its line of the table.
+void finishSetting(BenchRun& b, const Setting& s, const Prepared& p, eval::BenchRow& row,
+                   const Timings& t) {
+    row.name = s.name;
+    row.inputOnly = s.inputOnly;
+    if (!s.inputOnly && !t.computeMs.empty()) {
+        row.msPerFrame = median(t.computeMs);
+        const auto [lo, hi] = std::minmax_element(t.roundMedians.begin(), t.roundMedians.end());
+        row.msMin = *lo, row.msMax = *hi;
+        const auto& passes = t.passMs[t.medianFrame()];
+        for (const auto& n : p.compiled->executionOrder())
+            if (auto it = passes.find(n); it != passes.end()) row.passMs.push_back(*it);
+    }
     auto m = row.mean();
     if (!b.reference.empty())
         std::printf("%-34s %10.5f %7.2f %6.3f %9.5f %8.0f %10.2f %9.2f\n", s.name.c_str(), m.relMse,
                     m.psnr, m.ssim, m.temporal.value_or(0.0), m.speckles, row.msPerFrame,
-                    median(frames.loadMs));
+                    median(t.loadMs));
     else
         std::printf("%-34s %10s %7s %6s %9s %8s %10.2f %9.2f\n", s.name.c_str(), "-", "-", "-", "-",
-                    "-", row.msPerFrame, median(frames.loadMs));
+                    "-", row.msPerFrame, median(t.loadMs));
     std::fflush(stdout);
-    b.report.rows.push_back(std::move(row));
 }
 
 /// Throws Error (a usage error) naming a --crop-dump pattern no setting computes.
@@ -402,17 +429,32 @@ int runBench(const BenchOptions& o) {
     if (usage != 0) return usage;
     std::printf("%-34s %10s %7s %6s %9s %8s %10s %9s\n", "graph / setting", "relMSE", "PSNR",
                 "SSIM", "temporal", "speckles", "ms/frame", "load ms");
+    // Rounds alternate the settings so that a slow spell of the machine (another job, the
+    // clock) falls on all of them, and the spread over rounds shows how far timings are noise.
+    std::vector<eval::BenchRow> rows(settings.size());
+    std::vector<Timings> timings(settings.size());
+    std::vector<std::string> failed(settings.size());
+    for (size_t i = 0; i < settings.size(); ++i) failed[i] = prepared[i].error;
+    for (int round = 0; round < o.rounds; ++round)
+        for (size_t i = 0; i < settings.size(); ++i) {
+            if (!failed[i].empty()) continue;
+            try {
+                runRound(b, settings[i], prepared[i], rows[i], timings[i], round == 0);
+            } catch (const Error& e) {
+                failed[i] = e.what();
+            }
+        }
     int skipped = 0;
     std::string firstFailure;
     for (size_t i = 0; i < settings.size(); ++i) {
-        try {
-            if (!prepared[i].error.empty()) throw Error(prepared[i].error);
-            runSetting(b, settings[i], prepared[i]);
-        } catch (const Error& e) {
+        if (failed[i].empty()) {
+            finishSetting(b, settings[i], prepared[i], rows[i], timings[i]);
+            b.report.rows.push_back(std::move(rows[i]));
+        } else {
             // A graph this scene cannot feed (e.g. a split graph on a scene without the split) is
             // reported and skipped; the other rows still make a report.
-            std::printf("%-34s skipped: %s\n", settings[i].name.c_str(), e.what());
-            if (firstFailure.empty()) firstFailure = e.what();
+            std::printf("%-34s skipped: %s\n", settings[i].name.c_str(), failed[i].c_str());
+            if (firstFailure.empty()) firstFailure = failed[i];
             ++skipped;
         }
         prepared[i].compiled.reset();  // its passes are done with
@@ -457,6 +499,10 @@ void addBenchCommand(CLI::App& app, Action& action) {
         ->check(CLI::Range(0, 1024));
     cmd->add_option("--warmup", o->warmup, "Frames left out of the timing medians")
         ->check(CLI::Range(0, 1000));
+    cmd->add_option("--rounds", o->rounds,
+                    "Timing rounds: every setting's frames run once per round, the settings "
+                    "alternating; the report shows the spread over the rounds (default 3)")
+        ->check(CLI::Range(1, 100));
     cmd->add_option("--report", o->report, "Report folder");
     cmd->add_option("--tonemap", o->toneMap, "Tone map of PSNR/SSIM: reinhard, clamp, srgb");
     cmd->add_flag("--no-input-row", o->noInputRow, "Leave out the unfiltered-input row");

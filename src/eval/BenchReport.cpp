@@ -43,8 +43,9 @@ std::string markdown(const BenchReport& r, const std::vector<size_t>& pareto) {
     os << "Frames: " << r.frames.size() << "; PSNR, SSIM and temporal instability on "
        << toneMapName(r.toneMap) << "-tone-mapped values; * = on the Pareto front of "
        << "(ms per frame, relMSE).\n\n";
-    os << "| setting | relMSE | PSNR dB | SSIM | temporal | speckles/Mpx | ms/frame | Pareto |\n";
-    os << "| --- | ---: | ---: | ---: | ---: | ---: | ---: | :---: |\n";
+    os << "| setting | relMSE | PSNR dB | SSIM | temporal | speckles/Mpx | ms/frame | ms range "
+          "over rounds | Pareto |\n";
+    os << "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | :---: |\n";
     for (size_t i = 0; i < r.rows.size(); ++i) {
         const BenchRow& row = r.rows[i];
         const FrameMetrics m = row.mean();
@@ -52,8 +53,11 @@ std::string markdown(const BenchReport& r, const std::vector<size_t>& pareto) {
         os << "| " << row.name << " | " << fmt("%.6g", m.relMse) << " | " << fmt("%.2f", m.psnr)
            << " | " << fmt("%.4f", m.ssim) << " | " << (m.temporal ? fmt("%.6f", *m.temporal) : "-")
            << " | " << fmt("%.0f", m.speckles) << " | " << fmt("%.2f", row.msPerFrame) << " | "
+           << (row.msMax > 0 ? fmt("%.2f", row.msMin) + "-" + fmt("%.2f", row.msMax) : "-") << " | "
            << (front ? "*" : "") << " |\n";
     }
+    for (const auto& [i, j] : timingTies(r.rows, pareto))
+        os << "\nTie: " << tieText(r.rows[i], r.rows[j]) << ".\n";
     os << "\n## Time per pass (ms per frame)\n\n| setting | pass | ms |\n| --- | --- | ---: |\n";
     for (const BenchRow& row : r.rows)
         for (const auto& [pass, ms] : row.passMs)
@@ -100,6 +104,30 @@ std::vector<size_t> paretoFront(const std::vector<BenchRow>& rows) {
     return front;
 }
 
+std::vector<std::pair<size_t, size_t>> timingTies(const std::vector<BenchRow>& rows,
+                                                  const std::vector<size_t>& pareto) {
+    auto lo = [&](size_t i) { return rows[i].msMax > 0 ? rows[i].msMin : rows[i].msPerFrame; };
+    auto hi = [&](size_t i) { return rows[i].msMax > 0 ? rows[i].msMax : rows[i].msPerFrame; };
+    std::vector<std::pair<size_t, size_t>> ties;
+    for (size_t a = 0; a < pareto.size(); ++a)
+        for (size_t b = a + 1; b < pareto.size(); ++b) {
+            const size_t i = pareto[a], j = pareto[b];  // by ms: i no slower than j
+            if (rows[i].inputOnly || rows[j].inputOnly) continue;
+            if (hi(i) >= lo(j)) ties.push_back({i, j});
+        }
+    return ties;
+}
+
+std::string tieText(const BenchRow& fast, const BenchRow& accurate) {
+    auto range = [](const BenchRow& r) {
+        return r.msMax > 0 ? fmt("%.2f", r.msMin) + "-" + fmt("%.2f", r.msMax) + " ms"
+                           : fmt("%.2f ms", r.msPerFrame);
+    };
+    return fast.name + " (" + range(fast) + ") and " + accurate.name + " (" + range(accurate) +
+           ") tie on time within the spread over the rounds: " + accurate.name +
+           ", the lower error, is the pick";
+}
+
 BenchFiles writeBenchReport(const BenchReport& r, const std::filesystem::path& dir) {
     std::error_code ec;
     std::filesystem::create_directories(dir, ec);
@@ -109,7 +137,8 @@ BenchFiles writeBenchReport(const BenchReport& r, const std::filesystem::path& d
                      dir / "bench_passes.csv", dir / "bench.html"};
 
     std::ostringstream csv, frames, passes;
-    csv << "setting,relMse,psnr,ssim,temporal,msPerFrame,pareto,nonFiniteOutput,speckles\n";
+    csv << "setting,relMse,psnr,ssim,temporal,msPerFrame,pareto,nonFiniteOutput,speckles,msMin,"
+           "msMax\n";
     frames << "setting,frame,relMse,psnr,ssim,temporal,nonFiniteOutput,speckles\n";
     passes << "setting,pass,ms\n";
     for (size_t i = 0; i < r.rows.size(); ++i) {
@@ -119,7 +148,8 @@ BenchFiles writeBenchReport(const BenchReport& r, const std::filesystem::path& d
         csv << csvField(row.name) << ',' << fmt("%.9g", m.relMse) << ',' << fmt("%.6g", m.psnr)
             << ',' << fmt("%.6g", m.ssim) << ',' << temporalText(m.temporal) << ','
             << fmt("%.6g", row.msPerFrame) << ',' << (front ? 1 : 0) << ',' << m.nonFiniteOutput
-            << ',' << fmt("%.6g", m.speckles) << '\n';
+            << ',' << fmt("%.6g", m.speckles) << ',' << fmt("%.6g", row.msMin) << ','
+            << fmt("%.6g", row.msMax) << '\n';
         for (size_t f = 0; f < row.errors.size(); ++f) {
             const FrameMetrics& e = row.errors[f];
             frames << csvField(row.name) << ','

@@ -11,6 +11,10 @@ struct BenchReport;
 /// The self-contained HTML page (BenchHtml.cpp); `pareto` as returned by paretoFront.
 std::string benchHtml(const BenchReport& report, const std::vector<size_t>& pareto);
 
+struct BenchRow;
+/// "A (1.00-1.20 ms) and B (...) tie on time ...": a timingTies pair in words.
+std::string tieText(const BenchRow& fast, const BenchRow& accurate);
+
 std::string base64(const std::vector<unsigned char>& bytes);
 
 /// Escapes &, <, >, " for HTML/SVG text and attributes.

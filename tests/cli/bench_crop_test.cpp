@@ -1,6 +1,7 @@
-// kestrel bench --crop-dump: chosen intermediate resources shown as crops beside each setting's
-// output in the HTML report, on a tiny generated scene.
+// kestrel bench on a tiny generated scene: --crop-dump intermediates beside each setting's output
+// in the crops where the error is worst, per-pass times that add up, --rounds.
 #include <map>
+#include <sstream>
 
 #include "CliRunner.h"
 
@@ -37,7 +38,7 @@ std::string captionLike(const std::map<std::string, std::string>& f, const std::
 
 TEST(CliBench, CropDumpShowsIntermediatesBesideTheOutput) {
     Sandbox box;
-    if (!makeScene(box, box.work() / "scene", 32, 24, 4))
+    if (!makeScene(box, box.work() / "scene", 48, 32, 4))
         GTEST_SKIP() << "no scenegen in this build";
     auto bench = [&](std::vector<std::string> extra) {
         std::vector<std::string> args = {
@@ -63,6 +64,14 @@ TEST(CliBench, CropDumpShowsIntermediatesBesideTheOutput) {
     EXPECT_FALSE(f.at(atrous) == f.at("svgf")) << atrous << " is the output's crop";
     // The unfiltered-input row computes neither.
     EXPECT_TRUE(captionLike(f, "input (unfiltered): ", "").empty());
+    // Crops where the error is worst: several (a 48x32 frame holds two 16x16 windows side by
+    // side wherever the worst is), a difference image and an A/B flip of the best setting against
+    // the reference.
+    const std::string html = readText(box.work() / "rep" / "bench.html");
+    EXPECT_NE(html.find("<h3>Crop 2: x "), std::string::npos);
+    EXPECT_TRUE(f.count("noisy input") && f.count("reference"));
+    EXPECT_NE(html.find("alt='|svgf - reference| x"), std::string::npos);
+    EXPECT_NE(html.find("<img class='flip' alt='A/B: svgf | reference'"), std::string::npos);
 
     const CliResult typo = bench({"--crop-dump", "*atrous9.color"});
     EXPECT_EQ(typo.code, 2) << typo.all();
@@ -70,4 +79,70 @@ TEST(CliBench, CropDumpShowsIntermediatesBesideTheOutput) {
     EXPECT_NE(typo.errorLines()[0].find("--crop-dump '*atrous9.color' matches no resource"),
               std::string::npos)
         << typo.all();
+}
+
+TEST(CliBench, PassTimesAddUpToTheTable) {
+    // bench_passes.csv (and the per-pass chart) sum to bench.csv's ms per frame for every setting:
+    // the passes' times are those of the setting's median frame.
+    Sandbox box;
+    if (!makeScene(box, box.work() / "scene", 32, 24, 6))
+        GTEST_SKIP() << "no scenegen in this build";
+    const CliResult r =
+        box.run({"bench", std::string(KESTREL_SOURCE_DIR) + "/graphs/svgf.json", "--input",
+                 "scene/noisy/frame_####.exr", "--reference", "scene/ref/frame_####.exr",
+                 "--warmup", "1", "--threads", "1", "--report", "rep"});
+    ASSERT_EQ(r.code, 0) << r.all();
+    std::map<std::string, double> sums;
+    std::istringstream passes(readText(box.work() / "rep" / "bench_passes.csv"));
+    std::string line;
+    std::getline(passes, line);  // header
+    while (std::getline(passes, line))
+        sums[line.substr(0, line.find(','))] += std::stod(line.substr(line.rfind(',') + 1));
+    std::istringstream table(readText(box.work() / "rep" / "bench.csv"));
+    std::getline(table, line);
+    int checked = 0;
+    while (std::getline(table, line)) {
+        std::vector<std::string> f;
+        std::istringstream fields(line);
+        for (std::string v; std::getline(fields, v, ',');) f.push_back(v);
+        ASSERT_GE(f.size(), 6u) << line;
+        if (!sums.count(f[0])) continue;  // the input row has no computing pass
+        const double ms = std::stod(f[5]);
+        EXPECT_NEAR(sums[f[0]], ms, 1e-4 * ms + 1e-6) << f[0];
+        ++checked;
+    }
+    EXPECT_EQ(checked, 1);
+}
+
+TEST(CliBench, RoundsGiveEachSettingItsSpread) {
+    // --rounds 3: bench.csv gives each setting the lowest and highest of its rounds' medians,
+    // around its ms per frame.
+    Sandbox box;
+    if (!makeScene(box, box.work() / "scene", 32, 24, 4))
+        GTEST_SKIP() << "no scenegen in this build";
+    const CliResult r =
+        box.run({"bench", std::string(KESTREL_SOURCE_DIR) + "/graphs/svgf.json",
+                 std::string(KESTREL_SOURCE_DIR) + "/graphs/svgf-fast.json", "--input",
+                 "scene/noisy/frame_####.exr", "--reference", "scene/ref/frame_####.exr",
+                 "--warmup", "1", "--threads", "1", "--rounds", "3", "--report", "rep"});
+    ASSERT_EQ(r.code, 0) << r.all();
+    std::istringstream table(readText(box.work() / "rep" / "bench.csv"));
+    std::string line;
+    std::getline(table, line);
+    ASSERT_NE(line.find(",msMin,msMax"), std::string::npos) << line;
+    int checked = 0;
+    while (std::getline(table, line)) {
+        std::vector<std::string> f;
+        std::istringstream fields(line);
+        for (std::string v; std::getline(fields, v, ',');) f.push_back(v);
+        ASSERT_EQ(f.size(), 11u) << line;
+        const double ms = std::stod(f[5]), lo = std::stod(f[9]), hi = std::stod(f[10]);
+        if (ms == 0) continue;  // the input row: nothing timed
+        EXPECT_GT(lo, 0) << line;
+        EXPECT_LE(lo, ms * (1 + 1e-5)) << line;
+        EXPECT_GE(hi * (1 + 1e-5), ms) << line;
+        ++checked;
+    }
+    EXPECT_EQ(checked, 2);
+    EXPECT_EQ(box.run({"bench", "--rounds", "0"}).code, 2) << "--rounds 0 accepted";
 }
