@@ -149,14 +149,11 @@ const Baseline& baseline() {
     return b;
 }
 
-/// Open (issue 40, item 4 at the passes): radiance of huge magnitude in the split channels
-/// enters the history unclamped (TemporalAccumulation's firefly clamp bounds bright samples
-/// only), and takes frames to leave it: measured -8.2e10 on frame 4 for -1e38, -1.6e5 for -1e10,
-/// spread up to 30 px. Outside the loader only -1e10 reaches them. Checked finite and printed,
-/// not held to the bounds, until the clamp bounds both sides.
-bool open(const std::string& port, const std::string& value) {
-    return (port == "diffuse" || port == "specular") &&
-           (value == "-1e38" || value == "+1e38" || value == "-1e10");
+/// Open: a block of huge-magnitude diffuse radiance moves pixels a little further than an
+/// ordinary change (8 px for -1e10 and -1e38, 13 for +1e38, against 7: the firefly clamp passes
+/// a sample its neighbours, as bright, vouch for). Its range is held; its reach is printed.
+bool reachOpen(const std::string& port, const std::string& value) {
+    return port == "diffuse" && (value == "-1e38" || value == "+1e38" || value == "-1e10");
 }
 
 class FaultInjection : public ::testing::TestWithParam<const char*> {};
@@ -172,7 +169,7 @@ TEST_P(FaultInjection, DamageStaysLocalAndBounded) {
         const Frames hit = runSvgf("fault-" + port + "-" + v.name,
                                    [&](Frame& f) { plant(f, port, v.value); });
         ASSERT_EQ(hit.size(), b.clean.size());
-        const bool known = open(port, v.name);
+        const bool known = reachOpen(port, v.name);
         int farthest = -1;
         float lo = b.lo, hi = b.hi;  // over the frames after the hit
         for (size_t k = size_t(kHitFrame - 1); k < hit.size(); ++k) {
@@ -183,7 +180,6 @@ TEST_P(FaultInjection, DamageStaysLocalAndBounded) {
             if (k + 1 == size_t(kHitFrame)) continue;  // the hit frame itself shows the value
             const auto [kLo, kHi] = std::minmax_element(hit[k].begin(), hit[k].end());
             lo = std::min(lo, *kLo), hi = std::max(hi, *kHi);
-            if (known) continue;
             EXPECT_GE(*kLo, b.lo - slack(b.lo, b.hi)) << "frame " << k + 1;
             EXPECT_LE(*kHi, b.hi + slack(b.lo, b.hi)) << "frame " << k + 1;
         }
