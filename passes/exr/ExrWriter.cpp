@@ -11,6 +11,7 @@
 #include <OpenEXR/ImfThreading.h>
 #include <OpenEXR/ImfVersion.h>
 #include <fcntl.h>
+#include <libdeflate.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -27,7 +28,6 @@
 
 #include "ExrInput.h"
 #include "ZipWriter.h"
-#include <libdeflate.h>
 
 namespace kestrel::exr {
 
@@ -116,13 +116,21 @@ bool chunksPresent(std::ifstream& f, Imf::StdIFStream& is, const Imf::Header& h,
 constexpr char kCrcAttribute[] = "kestrel.dataCrc32";
 constexpr char kCrcPlaceholder[] = "00000000";
 
+/// A file descriptor closed when it goes out of scope.
+struct Fd {
+    int fd;
+    ~Fd() {
+        if (fd >= 0) ::close(fd);
+    }
+};
+
 /// CRC-32 of the bytes of `fd` from `from` to `to`, read a megabyte at a time.
 uint32_t crcOfRange(int fd, uint64_t from, uint64_t to) {
     std::vector<unsigned char> buf(std::min<uint64_t>(to - from, 1u << 20));
     uint32_t crc = 0;
     for (uint64_t at = from; at < to;) {
-        const ssize_t got = ::pread(fd, buf.data(), size_t(std::min<uint64_t>(buf.size(), to - at)),
-                                    off_t(at));
+        const ssize_t got =
+            ::pread(fd, buf.data(), size_t(std::min<uint64_t>(buf.size(), to - at)), off_t(at));
         if (got <= 0) throw Error(std::string("cannot read back: ") + std::strerror(errno));
         crc = libdeflate_crc32(crc, buf.data(), size_t(got));
         at += uint64_t(got);
@@ -140,12 +148,9 @@ std::string hex8(uint32_t v) {
 /// `headerEnd`, with the CRC of everything after the header. In place, the header's size and
 /// every offset unchanged.
 void stampChecksum(const std::string& path, uint64_t headerEnd) {
-    const int fd = ::open(path.c_str(), O_RDWR | O_CLOEXEC);
+    const Fd file{::open(path.c_str(), O_RDWR | O_CLOEXEC)};
+    const int fd = file.fd;
     if (fd < 0) throw Error(std::string("cannot open to checksum: ") + std::strerror(errno));
-    struct Closer {
-        int fd;
-        ~Closer() { ::close(fd); }
-    } closer{fd};
     const off_t size = ::lseek(fd, 0, SEEK_END);
     if (size < 0 || uint64_t(size) < headerEnd) throw Error("file shorter than its header");
     const std::string crc = hex8(crcOfRange(fd, headerEnd, uint64_t(size)));
@@ -163,7 +168,8 @@ void stampChecksum(const std::string& path, uint64_t headerEnd) {
 }
 
 /// Where the header of a single-part scan-line file ends (its offset table starts).
-uint64_t headerEndOf(const std::string& path, Imf::Header& h) {
+uint64_t headerEndOf(const std::string& path) {
+    Imf::Header h;
     std::ifstream f(path, std::ios::binary);
     Imf::StdIFStream is(f, path.c_str());
     unsigned char magic[8];
@@ -173,21 +179,20 @@ uint64_t headerEndOf(const std::string& path, Imf::Header& h) {
     return is.tellg();
 }
 
-/// Every pixel of `path` read through OpenEXR, which fails on a chunk that does not decode:
+/// Reads every pixel of `path` through OpenEXR, which throws on a chunk that does not decode:
 /// the check for files without kestrel.dataCrc32 (older or from another writer).
-bool decodesFully(const std::string& path) {
+void decodeAll(const std::string& path) {
     Imf::InputFile in(path.c_str(), 1);
     const Imath::Box2i dw = in.header().dataWindow();
     const size_t W = size_t(dw.max.x - dw.min.x + 1), H = size_t(dw.max.y - dw.min.y + 1);
     std::vector<float> plane(W * H);
     for (auto it = in.header().channels().begin(); it != in.header().channels().end(); ++it) {
         Imf::FrameBuffer fb;  // one channel at a time: one plane of memory
-        fb.insert(it.name(), Imf::Slice::Make(Imf::FLOAT, plane.data(), dw, sizeof(float),
-                                              W * sizeof(float)));
+        fb.insert(it.name(),
+                  Imf::Slice::Make(Imf::FLOAT, plane.data(), dw, sizeof(float), W * sizeof(float)));
         in.setFrameBuffer(fb);
         in.readPixels(dw.min.y, dw.max.y);
     }
-    return true;
 }
 
 /// Why the file cannot be trusted as this run's output (empty: it can). Checked in order of
@@ -225,18 +230,15 @@ std::string exrProblem(const std::string& path, const std::string& provenance) {
         if (!chunksPresent(f, is, h, size)) return broken;
         f.close();
         const auto* crc = h.findTypedAttribute<Imf::StringAttribute>(kCrcAttribute);
-        if (!crc) return decodesFully(path) ? "" : broken;
-        const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-        if (fd < 0) return broken;
-        uint32_t sum = 0;
-        try {
-            sum = crcOfRange(fd, table, size);
-        } catch (const std::exception&) {
-            ::close(fd);
-            return broken;
+        if (!crc) {
+            decodeAll(path);  // throws on a chunk that does not decode
+            return "";
         }
-        ::close(fd);
-        return hex8(sum) == crc->value() ? "" : "is corrupt (its data does not match its checksum)";
+        const Fd file{::open(path.c_str(), O_RDONLY | O_CLOEXEC)};
+        if (file.fd < 0) return broken;
+        if (hex8(crcOfRange(file.fd, table, size)) != crc->value())
+            return "is corrupt (its data does not match its checksum)";
+        return "";
     } catch (const std::exception&) {
         return broken;  // a header or chunk OpenEXR cannot parse: rewrite the frame
     }
@@ -495,8 +497,7 @@ void ExrWriter::writeExr(const ImageView& img, const std::string& file, const Fr
             out.setFrameBuffer(fb);
             out.writePixels(H);
         }  // closed before it is checksummed, flushed and renamed
-        Imf::Header written;
-        stampChecksum(tmp, headerEndOf(tmp, written));
+        stampChecksum(tmp, headerEndOf(tmp));
         injectFault("fsync", frame);
         syncToDisk(tmp, false);
         injectFault("rename", frame);

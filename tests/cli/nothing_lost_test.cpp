@@ -540,8 +540,8 @@ TEST_F(CliResumeTrust, ResumeWritesAgainAFrameWithABitFlippedInsideAChunk) {
                                            {"checksum, zlib adler", true, 2},
                                            {"no checksum: decoded fully", false, 2}}) {
         SCOPED_TRACE(c.name);
-        if (!c.withChecksum) renameAttribute(out() / "c.0002.exr", "kestrel.dataCrc32",
-                                             "kestrel.dataCrcXX");
+        if (!c.withChecksum)
+            renameAttribute(out() / "c.0002.exr", "kestrel.dataCrc32", "kestrel.dataCrcXX");
         flipBitNearEnd(out() / "c.0002.exr", c.fromEnd);
         auto resumed = run({"--resume"});
         EXPECT_EQ(resumed.code, 0) << resumed.all();

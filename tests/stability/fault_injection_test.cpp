@@ -40,11 +40,21 @@ const ValueClass kValues[] = {{"NaN", std::numeric_limits<float>::quiet_NaN()},
                               {"denormal", std::numeric_limits<float>::denorm_min()}};
 
 /// Every source port svgf.json reads (graphs/svgf.json and lib/svgf-chain.json).
-const char* const kChannels[] = {
-    "color",          "albedo",         "emission",          "diffuse",
-    "specular",       "diffuseAlbedo",  "specularAlbedo",    "jitteredAlbedo",
-    "jitteredDiffuseAlbedo", "jitteredSpecularAlbedo", "normal", "depth",
-    "position",       "motion",         "objectId"};
+const char* const kChannels[] = {"color",
+                                 "albedo",
+                                 "emission",
+                                 "diffuse",
+                                 "specular",
+                                 "diffuseAlbedo",
+                                 "specularAlbedo",
+                                 "jitteredAlbedo",
+                                 "jitteredDiffuseAlbedo",
+                                 "jitteredSpecularAlbedo",
+                                 "normal",
+                                 "depth",
+                                 "position",
+                                 "motion",
+                                 "objectId"};
 
 /// The plain scene with every channel svgf.json reads: the split of the colour (0.9 diffuse,
 /// 0.1 specular), albedos 0.5, no emission.
@@ -141,8 +151,7 @@ const Baseline& baseline() {
                                 for (int c = 0; c < 3; ++c) f[port].at(c, x, y) *= scale;
                 });
             for (size_t k = 0; k < benign.size(); ++k)
-                r.benignReach =
-                    std::max(r.benignReach, reach(benign[k], r.clean[k], r.tolerance));
+                r.benignReach = std::max(r.benignReach, reach(benign[k], r.clean[k], r.tolerance));
         }
         return r;
     }();
@@ -166,8 +175,8 @@ TEST_P(FaultInjection, DamageStaysLocalAndBounded) {
     const std::string port = GetParam();
     for (const ValueClass& v : kValues) {
         SCOPED_TRACE(port + " = " + v.name);
-        const Frames hit = runSvgf("fault-" + port + "-" + v.name,
-                                   [&](Frame& f) { plant(f, port, v.value); });
+        const Frames hit =
+            runSvgf("fault-" + port + "-" + v.name, [&](Frame& f) { plant(f, port, v.value); });
         ASSERT_EQ(hit.size(), b.clean.size());
         const bool known = reachOpen(port, v.name);
         int farthest = -1;
@@ -186,10 +195,11 @@ TEST_P(FaultInjection, DamageStaysLocalAndBounded) {
         if (!known) {
             EXPECT_LE(farthest, b.benignReach) << "the damage spread beyond the filters' footprint";
         }
-        std::printf("fault %s = %s: reach %d px (ordinary change: %d), frames after [%g, %g] "
-                    "(clean [%g, %g])%s\n",
-                    port.c_str(), v.name, farthest, b.benignReach, lo, hi, b.lo, b.hi,
-                    known ? " OPEN" : "");
+        std::printf(
+            "fault %s = %s: reach %d px (ordinary change: %d), frames after [%g, %g] "
+            "(clean [%g, %g])%s\n",
+            port.c_str(), v.name, farthest, b.benignReach, lo, hi, b.lo, b.hi,
+            known ? " OPEN" : "");
     }
 }
 

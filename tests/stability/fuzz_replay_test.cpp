@@ -94,8 +94,8 @@ public:
 /// (a kestrel::Error), or "" when the frame was read.
 std::string loaderError(const std::string& pattern) {
     try {
-        auto h = kestrel::testing::PassHarness::make<kestrel::exr::ExrLoader>(
-            {1, 1}, {{"path", pattern}});
+        auto h = kestrel::testing::PassHarness::make<kestrel::exr::ExrLoader>({1, 1},
+                                                                              {{"path", pattern}});
         QuietResolve rc;
         h.pass().resolve(rc);
         h.useOutputs({"color"});
