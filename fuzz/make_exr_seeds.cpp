@@ -16,7 +16,10 @@
 #include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/ImfTiledOutputFile.h>
 
+#include <cstdint>
 #include <cstdio>
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -105,6 +108,22 @@ void multipart(const std::string& path) {
     b.writePixels(2);
 }
 
+/// Copies `from` to `to` with its data and display windows forged to w x h, pixels unchanged:
+/// a header declaring far more than the file holds (issue 40, item 10).
+void oversized(const std::string& from, const std::string& to, int32_t w, int32_t h) {
+    std::ifstream in(from, std::ios::binary);
+    std::string bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+    for (const std::string name : {"dataWindow", "displayWindow"}) {
+        const std::string key = name + '\0' + "box2i" + '\0';
+        const auto at = bytes.find(key);
+        if (at == std::string::npos) return;
+        const int32_t box[4] = {0, 0, w - 1, h - 1};  // little-endian hosts only, as the seeds
+        bytes.replace(at + key.size() + 4, sizeof box, reinterpret_cast<const char*>(box),
+                      sizeof box);
+    }
+    std::ofstream(to, std::ios::binary) << bytes;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -146,5 +165,9 @@ int main(int argc, char** argv) {
     scanline(d + "y-only.exr", 4, 1, {"Y"}, Imf::HALF, Imf::NO_COMPRESSION);
     tiled(d + "tiled-6x5.exr", 6, 5, Imf::ONE_LEVEL);
     multipart(d + "multipart.exr");
+    // Headers declaring far more than the file: 4000x4000 (1.6 GB of pixels in a 2 KB file)
+    // and 4 x 1,000,000 (an offset table of 500 KB past the end of the file).
+    oversized(d + "canonical-4x3-zip.exr", d + "oversized-window-4000x4000.exr", 4000, 4000);
+    oversized(d + "canonical-4x3-zip.exr", d + "oversized-window-4x1000000.exr", 4, 1000000);
     return 0;
 }

@@ -30,20 +30,23 @@ std::vector<std::pair<int64_t, int64_t>> gapsIn(const std::vector<int64_t>& fram
     return gaps;
 }
 
-bool everySinkWrote(const std::vector<std::pair<std::string, Pass*>>& sinks, int64_t frame) {
+bool everySinkWrote(const std::vector<std::pair<std::string, Pass*>>& sinks, int64_t frame,
+                    const std::string& provenance) {
     if (sinks.empty()) return false;  // nothing to look at: the frame is not known to be done
     return std::all_of(sinks.begin(), sinks.end(),
-                       [&](const auto& s) { return s.second->frameWritten(frame); });
+                       [&](const auto& s) { return s.second->frameWritten(frame, provenance); });
 }
 
 /// Drops the frames before the first one some sink lacks, keeping the `history` frames just
 /// before it as catch-up (run, not written) so temporal passes see the history they would have.
 void resume(SequencePlan& plan, const CompiledGraph& graph, size_t history) {
     const auto sinks = graph.sinks();
+    // An output of another graph or other parameters is not this run's frame.
+    const std::string provenance = graph.provenanceJson();
     auto& s = plan.schedule;
     size_t firstMissing = s.size();
     for (size_t i = 0; i < s.size(); ++i)
-        if (s[i].write && !everySinkWrote(sinks, s[i].frame)) {
+        if (s[i].write && !everySinkWrote(sinks, s[i].frame, provenance)) {
             firstMissing = i;
             break;
         }

@@ -11,6 +11,7 @@
 #include <OpenEXR/ImfThreading.h>
 #include <OpenEXR/ImfVersion.h>
 #include <fcntl.h>
+#include <libdeflate.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -109,31 +110,137 @@ bool chunksPresent(std::ifstream& f, Imf::StdIFStream& is, const Imf::Header& h,
     return true;
 }
 
-/// A complete, readable EXR: magic number, a header OpenEXR parses, and every chunk present.
-/// Tiled, multi-part and deep files (not what this writer makes) are trusted when OpenEXR
-/// finds all their pixels.
-bool isCompleteExr(const std::string& path) {
+/// The header attribute holding the CRC-32 of everything after the header (the offset table
+/// and every chunk) as 8 hex digits. A bit flipped inside a chunk leaves every chunk's size
+/// right, and an uncompressed or stored chunk still decodes: only a checksum shows it.
+constexpr char kCrcAttribute[] = "kestrel.dataCrc32";
+constexpr char kCrcPlaceholder[] = "00000000";
+
+/// A file descriptor closed when it goes out of scope.
+struct Fd {
+    int fd;
+    ~Fd() {
+        if (fd >= 0) ::close(fd);
+    }
+};
+
+/// CRC-32 of the bytes of `fd` from `from` to `to`, read a megabyte at a time.
+uint32_t crcOfRange(int fd, uint64_t from, uint64_t to) {
+    std::vector<unsigned char> buf(std::min<uint64_t>(to - from, 1u << 20));
+    uint32_t crc = 0;
+    for (uint64_t at = from; at < to;) {
+        const ssize_t got =
+            ::pread(fd, buf.data(), size_t(std::min<uint64_t>(buf.size(), to - at)), off_t(at));
+        if (got <= 0) throw Error(std::string("cannot read back: ") + std::strerror(errno));
+        crc = libdeflate_crc32(crc, buf.data(), size_t(got));
+        at += uint64_t(got);
+    }
+    return crc;
+}
+
+std::string hex8(uint32_t v) {
+    char text[9];
+    std::snprintf(text, sizeof text, "%08x", v);
+    return text;
+}
+
+/// Fills the placeholder of kCrcAttribute in the (closed) file `path`, whose header ends at
+/// `headerEnd`, with the CRC of everything after the header. In place, the header's size and
+/// every offset unchanged.
+void stampChecksum(const std::string& path, uint64_t headerEnd) {
+    const Fd file{::open(path.c_str(), O_RDWR | O_CLOEXEC)};
+    const int fd = file.fd;
+    if (fd < 0) throw Error(std::string("cannot open to checksum: ") + std::strerror(errno));
+    const off_t size = ::lseek(fd, 0, SEEK_END);
+    if (size < 0 || uint64_t(size) < headerEnd) throw Error("file shorter than its header");
+    const std::string crc = hex8(crcOfRange(fd, headerEnd, uint64_t(size)));
+    std::string head(headerEnd, '\0');
+    if (::pread(fd, head.data(), head.size(), 0) != ssize_t(head.size()))
+        throw Error(std::string("cannot read back the header: ") + std::strerror(errno));
+    // name, type name, 4-byte little-endian size (8), value: OpenEXR's attribute layout.
+    const std::string key = std::string(kCrcAttribute) + '\0' + "string" + '\0' +
+                            std::string("\x08\0\0\0", 4) + kCrcPlaceholder;
+    const auto at = head.find(key);
+    if (at == std::string::npos) throw Error("no checksum placeholder in the header");
+    const off_t valueAt = off_t(at + key.size() - 8);
+    if (::pwrite(fd, crc.data(), 8, valueAt) != 8)
+        throw Error(std::string("cannot write the checksum: ") + std::strerror(errno));
+}
+
+/// Where the header of a single-part scan-line file ends (its offset table starts).
+uint64_t headerEndOf(const std::string& path) {
+    Imf::Header h;
+    std::ifstream f(path, std::ios::binary);
+    Imf::StdIFStream is(f, path.c_str());
+    unsigned char magic[8];
+    if (!f.read(reinterpret_cast<char*>(magic), 8)) throw Error("cannot read the header");
+    int version = int(readLE(magic + 4, 4));
+    h.readFrom(is, version);
+    return is.tellg();
+}
+
+/// Reads every pixel of `path` through OpenEXR, which throws on a chunk that does not decode:
+/// the check for files without kestrel.dataCrc32 (older or from another writer).
+void decodeAll(const std::string& path) {
+    Imf::InputFile in(path.c_str(), 1);
+    const Imath::Box2i dw = in.header().dataWindow();
+    const size_t W = size_t(dw.max.x - dw.min.x + 1), H = size_t(dw.max.y - dw.min.y + 1);
+    std::vector<float> plane(W * H);
+    for (auto it = in.header().channels().begin(); it != in.header().channels().end(); ++it) {
+        Imf::FrameBuffer fb;  // one channel at a time: one plane of memory
+        fb.insert(it.name(),
+                  Imf::Slice::Make(Imf::FLOAT, plane.data(), dw, sizeof(float), W * sizeof(float)));
+        in.setFrameBuffer(fb);
+        in.readPixels(dw.min.y, dw.max.y);
+    }
+}
+
+/// Why the file cannot be trusted as this run's output (empty: it can). Checked in order of
+/// cost: magic and header; the run's provenance (`provenance` empty: not compared); every
+/// chunk inside the file; the checksum of the offset table and chunks, or, for a file without
+/// one, every chunk decoded. Tiled, multi-part and deep files (not what this writer makes) are
+/// trusted when OpenEXR finds all their pixels.
+std::string exrProblem(const std::string& path, const std::string& provenance) {
+    const std::string broken = "is incomplete, corrupt or unreadable";
     try {
         std::ifstream f(path, std::ios::binary | std::ios::ate);
-        if (!f) return false;
+        if (!f) return broken;
         const uint64_t size = uint64_t(f.tellg());
         f.seekg(0);
         unsigned char magic[8];
-        if (size < 8 || !f.read(reinterpret_cast<char*>(magic), 8)) return false;
+        if (size < 8 || !f.read(reinterpret_cast<char*>(magic), 8)) return broken;
         const int version = int(readLE(magic + 4, 4));
-        if (int(readLE(magic, 4)) != Imf::MAGIC) return false;
+        if (int(readLE(magic, 4)) != Imf::MAGIC) return broken;
         if (Imf::isTiled(version) || Imf::isMultiPart(version) || Imf::isNonImage(version)) {
             f.close();
             Imf::InputFile in(path.c_str(), 1);
-            return in.isComplete();
+            return in.isComplete() ? "" : broken;
         }
         Imf::StdIFStream is(f, path.c_str());
         Imf::Header h;
         int v = version;
         h.readFrom(is, v);
-        return chunksPresent(f, is, h, size);
+        const uint64_t table = is.tellg();
+        if (!provenance.empty()) {
+            const auto* p = h.findTypedAttribute<Imf::StringAttribute>("kestrel.provenance");
+            if (!p || p->value() != provenance)
+                return "was written by another graph or other parameters (its "
+                       "kestrel.provenance is not this run's)";
+        }
+        if (!chunksPresent(f, is, h, size)) return broken;
+        f.close();
+        const auto* crc = h.findTypedAttribute<Imf::StringAttribute>(kCrcAttribute);
+        if (!crc) {
+            decodeAll(path);  // throws on a chunk that does not decode
+            return "";
+        }
+        const Fd file{::open(path.c_str(), O_RDONLY | O_CLOEXEC)};
+        if (file.fd < 0) return broken;
+        if (hex8(crcOfRange(file.fd, table, size)) != crc->value())
+            return "is corrupt (its data does not match its checksum)";
+        return "";
     } catch (const std::exception&) {
-        return false;  // a header OpenEXR cannot parse: rewrite the frame
+        return broken;  // a header or chunk OpenEXR cannot parse: rewrite the frame
     }
 }
 
@@ -235,17 +342,18 @@ void ExrWriter::beginRun(const RunContext& rc) {
     if (preview_) ensureWritableFolder(preview_->expand(rc.firstFrame));
 }
 
-bool ExrWriter::frameWritten(int64_t frame) const {
-    // A frame is written when every file it writes is complete: the EXR and its preview (a
-    // preview lost to a failed write was never made again by --resume).
+bool ExrWriter::frameWritten(int64_t frame, const std::string& provenance) const {
+    // A frame is written when every file it writes is complete and intact, and by this run's
+    // graph and parameters: the EXR and its preview (a preview lost to a failed write was
+    // never made again by --resume).
     const std::string file = path_.expand(frame);
     std::error_code ec;
     if (!fs::exists(file, ec)) return false;
-    if (!isCompleteExr(file)) {
-        spdlog::warn(
-            "ExrWriter: {} is incomplete or unreadable (an interrupted write?); frame {} "
-            "is written again",
-            file, frame);
+    if (const std::string problem = exrProblem(file, provenance); !problem.empty()) {
+        // --resume runs on from the first frame not written: a later frame is run again too.
+        const bool foreign = problem.find("provenance") != std::string::npos;
+        spdlog::warn("ExrWriter: {} {}; {} {} {}", file, problem, foreign ? "frames from" : "frame",
+                     frame, foreign ? "on are run again" : "is written again");
         return false;
     }
     if (!preview_) return true;
@@ -344,6 +452,7 @@ void ExrWriter::writeExr(const ImageView& img, const std::string& file, const Fr
         header.insert("kestrel.graph", Imf::StringAttribute(ctx.run->graphName));
         header.insert("kestrel.provenance", Imf::StringAttribute(ctx.run->provenance));
     }
+    header.insert(kCrcAttribute, Imf::StringAttribute(kCrcPlaceholder));  // filled once written
     // The image channel of each of the header's (alphabetically ordered) channels.
     std::vector<int> channelOf;
     for (auto it = header.channels().begin(); it != header.channels().end(); ++it)
@@ -387,7 +496,8 @@ void ExrWriter::writeExr(const ImageView& img, const std::string& file, const Fr
             Imf::OutputFile out(tmp.c_str(), header, Imf::globalThreadCount());
             out.setFrameBuffer(fb);
             out.writePixels(H);
-        }  // closed before it is flushed and renamed
+        }  // closed before it is checksummed, flushed and renamed
+        stampChecksum(tmp, headerEndOf(tmp));
         injectFault("fsync", frame);
         syncToDisk(tmp, false);
         injectFault("rename", frame);

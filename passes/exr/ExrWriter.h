@@ -23,7 +23,7 @@ public:
     void resolve(ResolveContext& rc) override;
     void beginRun(const RunContext& rc) override;
     void execute(FrameContext& ctx, PassIO& io) override;
-    bool frameWritten(int64_t frame) const override;
+    bool frameWritten(int64_t frame, const std::string& provenance) const override;
 
 private:
     /// `lent`: the writer's idle planes (PassIO::idlePlanes), for the ZIP encoder's chunk buffers.

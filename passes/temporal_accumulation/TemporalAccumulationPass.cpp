@@ -87,7 +87,8 @@ __attribute__((always_inline)) inline void pixel(Params p, const Row& r, int x, 
     const float ke = k / (useC ? ac : 1.f);
     const float mu = s1 / n;
     const float nb = std::fma(std::sqrt(std::max(0.f, std::fma(-mu, mu, s2 / n))), ke, mu);
-    const float hb = std::fma(std::sqrt(std::max(0.f, std::fma(-m1p, m1p, m2p))), ke, m1p);
+    const float sh = std::sqrt(std::max(0.f, std::fma(-m1p, m1p, m2p)));  // the history's sigma
+    const float hb = std::fma(sh, ke, m1p);
     float bound = noNeighbours ? 1e30f : nb;
     bound = useM ? std::max(bound, hb) : bound;
     const bool clamp = (k > 0.f) & (l > 0.f) & (l > bound);
@@ -100,6 +101,16 @@ __attribute__((always_inline)) inline void pixel(Params p, const Row& r, int x, 
     // camera, a glint) passes within a few frames where at b it stayed at the neighbours' level
     // for good; a noise tail (l <= 2b) enters at b as before, a one-off firefly at most at 2b.
     l = clamp ? std::min(std::max(l - bz, bz), 2.f * bz) : l;
+    // Dark clamp: a negative sample below the history's mean - k' sigma (a valid history only:
+    // the neighbours of a damaged block are as damaged) is scaled to that bound, at most 0. A
+    // -1e10 sample entered unclamped and held the history negative for frames, spreading.
+    const float low = std::min(std::fma(-ke, sh, m1p), 0.f);
+    const bool dark = (k > 0.f) & useM & (l < low);
+    const float sd = dark ? low / l : 1.f;  // l < low <= 0: in [0, 1)
+    c0 *= sd;
+    c1 *= sd;
+    c2 *= sd;
+    l = dark ? low : l;
     const float q0 = px::sanitize(r.p0[x]), q1 = px::sanitize(r.p1[x]), q2 = px::sanitize(r.p2[x]);
     r.o0[x] = useC ? std::fma(ac, c0 - q0, q0) : c0;
     r.o1[x] = useC ? std::fma(ac, c1 - q1, q1) : c1;
@@ -273,7 +284,8 @@ PassDesc TemporalAccumulationPass::describe() {
         .paramFloat("maxHistoryLength", 32.0, 1.0, 1e6, "cap of the history length")
         .paramFloat("fireflySigma", 3.0, 0.0, 1e6,
                     "firefly clamp: a sample brighter than mean + k*stddev of its 8 neighbours AND"
-                    " of its own history is scaled down to that bound (k = this; 0 = off)");
+                    " of its own history is scaled down to that bound, a negative sample below"
+                    " mean - k*stddev of its history up to it, at most 0 (k = this; 0 = off)");
     return d;
 }
 

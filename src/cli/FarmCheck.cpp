@@ -53,7 +53,7 @@ FrameState frameState(const std::vector<Writer>& writers, int64_t frame, std::st
         // The writer's own rule; it warns that it would rewrite the file, which is not news here.
         const auto level = spdlog::get_level();
         spdlog::set_level(spdlog::level::err);
-        const bool complete = w.pass->frameWritten(frame);
+        const bool complete = w.pass->frameWritten(frame, "");
         spdlog::set_level(level);
         if (!complete) return FrameState::Broken;
     }

@@ -171,6 +171,13 @@ TEST_F(Farm, CheckNamesMissingAndBrokenFramesAndTheTasksToRerun) {
     EXPECT_TRUE(std::regex_search(fixed.out,
                                   std::regex("task 1 .* 0 frames written, exit 0 \\(attempt 2\\)")))
         << fixed.out;
+    // A bit flipped inside a chunk (every chunk's size still right) is broken too.
+    std::string bytes = readText(box.work() / "out" / "frame_0005.exr");
+    bytes[bytes.size() - 9] ^= 0x10;
+    writeText(box.work() / "out" / "frame_0005.exr", bytes);
+    CliResult flipped = box.run(checkArgs);
+    EXPECT_EQ(flipped.code, 1) << flipped.all();
+    EXPECT_NE(flipped.out.find("broken  frame 5: "), std::string::npos) << flipped.out;
 }
 
 TEST_F(Farm, CheckWithoutAPlanIsAUsageError) {

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <sstream>
 
 #include "CliRunner.h"
 #include "ExrCheck.h"
@@ -494,6 +495,83 @@ TEST_F(CliNothingLost, ResumeWritesAgainAPreviewLostOrCutShort) {
         EXPECT_EQ(readText(out / c.png), before) << "the preview was not written again";
     }
     EXPECT_EQ(readText(out / "c.0001.exr"), exr1) << "--resume rewrote a complete frame";
+}
+
+// --- Outputs --resume and farm check trust (item 7) ---------------------------------------
+
+/// Flips one bit of the byte `fromEnd` bytes before the end of `path`: inside the last chunk's
+/// data (its zlib checksum at the very end), every chunk's size left as it was.
+void flipBitNearEnd(const fs::path& path, size_t fromEnd) {
+    std::string bytes = readText(path);
+    ASSERT_GT(bytes.size(), fromEnd);
+    bytes[bytes.size() - fromEnd] ^= 0x10;
+    writeText(path, bytes);
+}
+
+/// Renames the header attribute `from` to `to` (as long) in place: a file written without it.
+void renameAttribute(const fs::path& path, const std::string& from, const std::string& to) {
+    std::string bytes = readText(path);
+    const auto at = bytes.find(from + '\0');
+    ASSERT_NE(at, std::string::npos) << from;
+    bytes.replace(at, to.size(), to);
+    writeText(path, bytes);
+}
+
+class CliResumeTrust : public CliNothingLost {
+protected:
+    CliResult run(std::vector<std::string> extra, const std::string& frames = "1-3") {
+        extra.insert(extra.begin(), {"--frames", frames, "--output", "out/c.####.exr"});
+        return box.run(runArgs((graphDir() / "copy.json").string(), extra));
+    }
+    fs::path out() const { return work() / "out"; }
+};
+
+TEST_F(CliResumeTrust, ResumeWritesAgainAFrameWithABitFlippedInsideAChunk) {
+    ASSERT_EQ(run({}).code, 0);
+    const std::string frame2 = readText(out() / "c.0002.exr");
+    struct Case {
+        std::string name;
+        bool withChecksum;
+        size_t fromEnd;  // the flipped byte
+    };
+    // With the checksum any byte is caught; without it (an older file) decoding must fail, so
+    // the flip is in the zlib checksum that ends the last chunk.
+    for (const auto& c : std::vector<Case>{{"checksum, chunk data", true, 9},
+                                           {"checksum, zlib adler", true, 2},
+                                           {"no checksum: decoded fully", false, 2}}) {
+        SCOPED_TRACE(c.name);
+        if (!c.withChecksum)
+            renameAttribute(out() / "c.0002.exr", "kestrel.dataCrc32", "kestrel.dataCrcXX");
+        flipBitNearEnd(out() / "c.0002.exr", c.fromEnd);
+        auto resumed = run({"--resume"});
+        EXPECT_EQ(resumed.code, 0) << resumed.all();
+        EXPECT_NE(resumed.err.find("out/c.0002.exr is "), std::string::npos) << resumed.all();
+        EXPECT_TRUE(readText(out() / "c.0002.exr") == frame2) << "the damaged frame was trusted";
+    }
+}
+
+TEST_F(CliResumeTrust, ResumeRunsAgainFramesOfOtherParametersAndSaysWhich) {
+    ASSERT_EQ(run({}, "1-2").code, 0);
+    const std::string frame1 = readText(out() / "c.0001.exr");
+    auto resumed = run({"--resume", "--set", "tonemap.exposure=1"});
+    EXPECT_EQ(resumed.code, 0) << resumed.all();
+    auto warnings = 0;
+    std::istringstream err(resumed.err);
+    for (std::string line; std::getline(err, line);)
+        if (line.find("another graph or other parameters") != std::string::npos) {
+            ++warnings;
+            EXPECT_NE(line.find("out/c.0001.exr"), std::string::npos) << line;
+            EXPECT_NE(line.find("frames from 1 on are run again"), std::string::npos) << line;
+        }
+    EXPECT_EQ(warnings, 1) << resumed.all();
+    EXPECT_TRUE(readText(out() / "c.0001.exr") != frame1) << "a frame of other parameters was kept";
+    EXPECT_TRUE(fs::exists(out() / "c.0003.exr"));
+    // The same parameters again: every frame is this run's, nothing is rewritten.
+    const std::string rewritten = readText(out() / "c.0001.exr");
+    auto again = run({"--resume", "--set", "tonemap.exposure=1"});
+    EXPECT_EQ(again.code, 0) << again.all();
+    EXPECT_NE(again.err.find("every frame is already written"), std::string::npos) << again.all();
+    EXPECT_TRUE(readText(out() / "c.0001.exr") == rewritten) << "a frame of this run was rewritten";
 }
 
 // --- Memory (item 10) ---------------------------------------------------------------------

@@ -183,8 +183,12 @@ public:
         int64_t /*frameNumber*/) const {
         return {};
     }
-    /// Sinks: whether this frame's output already exists (for --resume).
-    virtual bool frameWritten(int64_t /*frameNumber*/) const { return false; }
+    /// Sinks: whether this frame's output already exists, complete and intact (for --resume and
+    /// farm check). `provenance`: the graph's (CompiledGraph::provenanceJson), which an output
+    /// must have been written with; empty: any will do.
+    virtual bool frameWritten(int64_t /*frameNumber*/, const std::string& /*provenance*/) const {
+        return false;
+    }
     /// Sinks: called at the end of a run (close files, print summaries).
     virtual void endRun() {}
 };

@@ -70,7 +70,7 @@ public:
         seen.ran.push_back(ctx.frameNumber);
         if (ctx.writeOutputs) seen.written.push_back(ctx.frameNumber);
     }
-    bool frameWritten(int64_t frame) const override { return seen.onDisk.count(frame) > 0; }
+    bool frameWritten(int64_t frame, const std::string&) const override { return seen.onDisk.count(frame) > 0; }
     void endRun() override { ++seen.endRuns; }
 
 private:

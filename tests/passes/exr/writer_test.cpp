@@ -110,8 +110,8 @@ TEST(ExrWriter, AtomicNoTemporaryLeftAndProvenanceStored) {
     EXPECT_NE(in.header().findTypedAttribute<Imf::StringAttribute>("kestrel.provenance"), nullptr);
     EXPECT_EQ(in.header().channels().findChannel("R")->type, Imf::FLOAT);
     EXPECT_EQ(in.header().compression(), Imf::PIZ_COMPRESSION);
-    EXPECT_TRUE(h.pass().frameWritten(2));
-    EXPECT_FALSE(h.pass().frameWritten(3));
+    EXPECT_TRUE(h.pass().frameWritten(2, ""));
+    EXPECT_FALSE(h.pass().frameWritten(3, ""));
 }
 
 TEST(ExrWriter, FailedWriteLeavesNoPartialFile) {

@@ -93,6 +93,15 @@ inline Outputs accumulate(const Image& color, const Image* prevColor, const Imag
                     l = std::min(std::max(l - b, b), 2.f * b);
                 }
             }
+            if (k > 0.f && l < 0.f && valid && prevMoments) {
+                // A negative sample below the history's mean - k' sigma is held to it (<= 0).
+                const float sh = std::sqrt(std::max(0.f, std::fma(-m1p, m1p, m2p)));
+                const float low = std::min(std::fma(-ke, sh, m1p), 0.f);
+                if (l < low) {
+                    for (float& v : c) v *= low / l;
+                    l = low;
+                }
+            }
             for (int ch = 0; ch < 3; ++ch) {
                 float v = c[ch];
                 if (valid && prevColor) {

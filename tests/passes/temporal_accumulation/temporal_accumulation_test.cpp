@@ -126,6 +126,25 @@ TEST(TemporalAccumulation, RecurringBrightSampleRisesThroughTheClamp) {
     EXPECT_NEAR(hist.color.at(0, 1, 2), 1.f, 1e-5f);  // the neighbours are untouched
 }
 
+// A block of hugely negative radiance (-1e10 passes the loader) is as damaged as its
+// neighbours, so they cannot bound it; its valid history can. It entered unclamped and held the
+// history negative for frames (issue 40, item 4). Without a history it is left as it is.
+TEST(TemporalAccumulation, NegativeBlockIsHeldToItsHistorysLowerBound) {
+    Image cur = constant(5, 5, Format::Float3, -1e10f);
+    History hist{constant(5, 5, Format::Float3, 0.5f), constant(5, 5, Format::Float2, 0.5f),
+                 constant(5, 5, Format::Float, 8.f)};
+    for (int y = 0; y < 5; ++y)
+        for (int x = 0; x < 5; ++x) hist.moments.at(1, x, y) = 0.26f;  // stddev 0.1
+    auto h = step(cur, &hist);
+    // k' = 3 / 0.2 = 15: mean 0.5 - 15 * 0.1 = -1; the colour is blended towards it at 0.2.
+    EXPECT_NEAR(h.out("color").at(0, 2, 2), 0.5f + 0.2f * (-1.f - 0.5f), 1e-4f);
+    EXPECT_NEAR(h.out("moments").at(0, 2, 2), 0.5f + 0.2f * (-1.f - 0.5f), 1e-4f);
+    auto none = step(cur, nullptr);
+    EXPECT_FLOAT_EQ(none.out("color").at(0, 2, 2), -1e10f);
+    auto off = step(cur, &hist, {{"fireflySigma", 0.0}});
+    EXPECT_LT(off.out("color").at(0, 2, 2), -1e9f);
+}
+
 TEST(TemporalAccumulation, NonFiniteInputsGiveFiniteOutputs) {
     Image cur = constant(4, 4, Format::Float3, 1.f);
     cur.at(0, 1, 1) = NAN;
