@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -163,6 +164,28 @@ inline std::string frameName(const std::string& prefix, int frame, const std::st
 /// Source folder of the test graphs.
 inline fs::path graphDir() {
     return fs::path(KESTREL_SOURCE_DIR) / "tests" / "cli" / "graphs";
+}
+
+/// FNV-1a of every regular file below `dir` (symlinks and FIFOs not followed), by path relative
+/// to it: what a command must leave unchanged.
+inline std::map<std::string, uint64_t> checksums(const fs::path& dir) {
+    std::map<std::string, uint64_t> sums;
+    for (const auto& e : fs::recursive_directory_iterator(dir)) {
+        if (!e.is_regular_file() || e.is_symlink()) continue;
+        uint64_t h = 1469598103934665603ull;
+        for (unsigned char c : readText(e.path())) h = (h ^ c) * 1099511628211ull;
+        sums[fs::relative(e.path(), dir).string()] = h;
+    }
+    return sums;
+}
+
+/// Exactly one "error:" line, containing every needle, and no crash.
+inline void expectOneError(const CliResult& r, std::initializer_list<std::string> needles) {
+    auto lines = r.errorLines();
+    ASSERT_EQ(lines.size(), 1u) << r.all();
+    for (const auto& n : needles)
+        EXPECT_NE(lines[0].find(n), std::string::npos) << "missing '" << n << "' in: " << lines[0];
+    EXPECT_FALSE(looksLikeCrash(r.all())) << r.all();
 }
 
 }  // namespace clitest

@@ -14,27 +14,6 @@ using namespace clitest;
 
 namespace {
 
-/// FNV-1a of every regular file below `dir` (symlinks not followed), by path relative to it.
-std::map<std::string, uint64_t> checksums(const fs::path& dir) {
-    std::map<std::string, uint64_t> sums;
-    for (const auto& e : fs::recursive_directory_iterator(dir)) {
-        if (!e.is_regular_file() || e.is_symlink()) continue;
-        uint64_t h = 1469598103934665603ull;
-        for (unsigned char c : readText(e.path())) h = (h ^ c) * 1099511628211ull;
-        sums[fs::relative(e.path(), dir).string()] = h;
-    }
-    return sums;
-}
-
-/// One "error:" line containing every needle.
-void expectOneError(const CliResult& r, std::initializer_list<std::string> needles) {
-    auto lines = r.errorLines();
-    ASSERT_EQ(lines.size(), 1u) << r.all();
-    for (const auto& n : needles)
-        EXPECT_NE(lines[0].find(n), std::string::npos) << "missing '" << n << "' in: " << lines[0];
-    EXPECT_FALSE(looksLikeCrash(r.all())) << r.all();
-}
-
 class CliBadInput : public ::testing::Test {
 protected:
     void SetUp() override {

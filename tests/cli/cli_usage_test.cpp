@@ -16,14 +16,6 @@ void expectClean(const CliResult& r) {
     EXPECT_FALSE(looksLikeCrash(r.out + r.err)) << r.all();
 }
 
-/// One "error:" line that contains every `needle`.
-void expectOneError(const CliResult& r, std::initializer_list<const char*> needles) {
-    auto lines = r.errorLines();
-    ASSERT_EQ(lines.size(), 1u) << r.all();
-    for (const char* n : needles)
-        EXPECT_NE(lines[0].find(n), std::string::npos) << "missing '" << n << "' in: " << lines[0];
-}
-
 }  // namespace
 
 TEST(CliUsage, UnknownSubcommandIsAUsageError) {

@@ -17,27 +17,6 @@ using namespace clitest;
 
 namespace {
 
-/// FNV-1a of every regular file below `dir` (symlinks and FIFOs not followed), by relative path.
-std::map<std::string, uint64_t> fileSums(const fs::path& dir) {
-    std::map<std::string, uint64_t> sums;
-    for (const auto& e : fs::recursive_directory_iterator(dir)) {
-        if (!e.is_regular_file() || e.is_symlink()) continue;
-        uint64_t h = 1469598103934665603ull;
-        for (unsigned char c : readText(e.path())) h = (h ^ c) * 1099511628211ull;
-        sums[fs::relative(e.path(), dir).string()] = h;
-    }
-    return sums;
-}
-
-/// Exactly one "error:" line, containing every needle, and no crash.
-void expectOneErrorLine(const CliResult& r, std::initializer_list<std::string> needles) {
-    auto lines = r.errorLines();
-    ASSERT_EQ(lines.size(), 1u) << r.all();
-    for (const auto& n : needles)
-        EXPECT_NE(lines[0].find(n), std::string::npos) << "missing '" << n << "' in: " << lines[0];
-    EXPECT_FALSE(looksLikeCrash(r.all())) << r.all();
-}
-
 /// tests/cli/graphs/copy.json with `tonemapParams` as the tone map's parameters (JSON text).
 std::string copyGraphWith(const std::string& tonemapParams) {
     return R"({"kestrel": 1, "name": "copy", "passes": [
@@ -60,7 +39,7 @@ protected:
         // 32x24, 3 frames: about 0.05 s to generate.
         if (!makeScene(box, box.work() / "scene", 32, 24, 3))
             GTEST_SKIP() << "no scenegen in this build";
-        before = fileSums(box.work() / "scene");
+        before = checksums(box.work() / "scene");
     }
     std::vector<std::string> runArgs(const std::string& graph, std::vector<std::string> extra) {
         std::vector<std::string> args = {
@@ -69,7 +48,7 @@ protected:
         return args;
     }
     void expectInputsUntouched() {
-        EXPECT_EQ(fileSums(box.work() / "scene"), before) << "an input frame changed";
+        EXPECT_EQ(checksums(box.work() / "scene"), before) << "an input frame changed";
     }
     fs::path work() const { return box.work(); }
 
@@ -93,7 +72,7 @@ TEST_F(CliNothingLost, DeeplyNestedJsonIsRefusedByEveryCommand) {
         SCOPED_TRACE(args[0]);
         auto r = box.runWithin(60, args);
         EXPECT_EQ(r.code, 2) << r.all();
-        expectOneErrorLine(
+        expectOneError(
             r, {"deep.json", "nested deeper than 256 levels", "passes[1].params.exposure[0]"});
     }
     EXPECT_FALSE(fs::exists(work() / "out"));
@@ -105,7 +84,7 @@ TEST_F(CliNothingLost, DeeplyNestedSetValueIsRefused) {
                                        {"--frames", "1", "--output", "out/c.####.exr", "--set",
                                         "tonemap.exposure=" + nested(50000)}));
     EXPECT_EQ(r.code, 2) << r.all();
-    expectOneErrorLine(r, {"--set tonemap.exposure", "nested deeper than 256 levels"});
+    expectOneError(r, {"--set tonemap.exposure", "nested deeper than 256 levels"});
     EXPECT_FALSE(fs::exists(work() / "out"));
 }
 
@@ -113,7 +92,7 @@ TEST_F(CliNothingLost, NestingWithinTheLimitIsOnlyAParameterError) {
     writeText(work() / "ok.json", copyGraphWith(R"({"exposure": )" + nested(200) + "}"));
     auto r = box.run({"validate", "ok.json"});
     EXPECT_EQ(r.code, 2) << r.all();
-    expectOneErrorLine(r, {"passes[1].params.exposure", "expected number"});
+    expectOneError(r, {"passes[1].params.exposure", "expected number"});
 }
 
 TEST_F(CliNothingLost, DuplicateKeyIsRefusedWithItsJsonPath) {
@@ -124,7 +103,7 @@ TEST_F(CliNothingLost, DuplicateKeyIsRefusedWithItsJsonPath) {
         SCOPED_TRACE(args[0]);
         auto r = box.run(args);
         EXPECT_EQ(r.code, 2) << r.all();
-        expectOneErrorLine(r,
+        expectOneError(r,
                            {"dup.json", "duplicate key 'exposure'", "passes[1].params.exposure"});
     }
     EXPECT_FALSE(fs::exists(work() / "out"));
@@ -134,7 +113,7 @@ TEST_F(CliNothingLost, DuplicateKeyInAFarmPlanIsRefused) {
     writeText(work() / "plan.json", R"({"tasks": [], "tasks": []})");
     auto r = box.run({"farm", "check", "--plan", "plan.json"});
     EXPECT_EQ(r.code, 2) << r.all();
-    expectOneErrorLine(r, {"plan.json", "duplicate key 'tasks'"});
+    expectOneError(r, {"plan.json", "duplicate key 'tasks'"});
 }
 
 // --- readers refuse what is not a regular file (a FIFO blocked the read forever) ----------
@@ -151,12 +130,12 @@ TEST_F(CliNothingLost, FifoAsReferenceIsRefused) {
                                        {"--frames", "1", "--output", "out/c.####.exr",
                                         "--reference", "ref/frame_####.exr"}));
     EXPECT_EQ(r.code, 1) << r.all();
-    expectOneErrorLine(r, {"ref/frame_0001.exr", "not a regular file"});
+    expectOneError(r, {"ref/frame_0001.exr", "not a regular file"});
 
     auto c = box.runWithin(30, {"compare", "scene/noisy/frame_0001.exr", "ref/frame_0001.exr"});
     EXPECT_NE(c.code, 0) << c.all();
     EXPECT_NE(c.code, 128 + 9) << "killed by the time limit: the FIFO was read\n" << c.all();
-    expectOneErrorLine(c, {"ref/frame_0001.exr", "not a regular file"});
+    expectOneError(c, {"ref/frame_0001.exr", "not a regular file"});
     expectInputsUntouched();
 }
 
@@ -164,7 +143,7 @@ TEST_F(CliNothingLost, FifoAsFarmPlanIsRefused) {
     makeFifo(work() / "plan.json");
     auto r = box.runWithin(30, {"farm", "check", "--plan", "plan.json"});
     EXPECT_EQ(r.code, 2) << r.all();
-    expectOneErrorLine(r, {"--plan plan.json", "not a regular file"});
+    expectOneError(r, {"--plan plan.json", "not a regular file"});
 }
 
 // --- GAMES202: every sibling file is an input -------------------------------------------
@@ -179,7 +158,7 @@ protected:
                           "--height", "24", "--frames", "3", "--spp", "2"});
         ASSERT_EQ(r.code, 0) << r.all();
         ASSERT_TRUE(fs::exists(work() / "G" / "matrix_1.mat"));
-        games = fileSums(work() / "G");
+        games = checksums(work() / "G");
     }
     CliResult runGames(const std::string& input, const std::string& output) {
         return box.run({"run",
@@ -201,8 +180,8 @@ TEST_F(CliNothingLostGames202, OutputOverASiblingFileIsRefused) {
         SCOPED_TRACE(input + " -> " + output);
         auto r = runGames(input, output);
         EXPECT_EQ(r.code, 2) << r.all();
-        expectOneErrorLine(r, {"frame 1", "input.path", "writing would destroy it"});
-        EXPECT_EQ(fileSums(work() / "G"), games) << "a GAMES202 input file changed";
+        expectOneError(r, {"frame 1", "input.path", "writing would destroy it"});
+        EXPECT_EQ(checksums(work() / "G"), games) << "a GAMES202 input file changed";
     }
 }
 
@@ -213,7 +192,7 @@ TEST_F(CliNothingLostGames202, FifoAsMatrixFileIsRefused) {
         60, {"run", (fs::path(KESTREL_SOURCE_DIR) / "graphs" / "games202-jbf.json").string(),
              "--input", "G", "--output", "out/g_%d.exr", "--frames", "1-3", "--threads", "2"});
     EXPECT_EQ(r.code, 1) << r.all();
-    expectOneErrorLine(r, {"G/matrix_2.mat", "not a regular file"});
+    expectOneError(r, {"G/matrix_2.mat", "not a regular file"});
 }
 
 // --- no command writes a file it reads -----------------------------------------------------
@@ -223,27 +202,27 @@ TEST_F(CliNothingLost, OneFrameOutputOverTheGraphOrAnIncludeIsRefused) {
     writeText(work() / "lib" / "empty.json", R"({"kestrel": 1, "groups": {}})");
     writeText(work() / "inc.json",
               R"({"kestrel": 1, "include": ["lib/empty.json"], "extends": "g.json"})");
-    const auto graphs = fileSums(work());
+    const auto graphs = checksums(work());
     for (const auto& [graph, output] : std::vector<std::pair<std::string, std::string>>{
              {"g.json", "g.json"}, {"inc.json", "lib/empty.json"}, {"inc.json", "./g.json"}}) {
         SCOPED_TRACE(graph + " -> " + output);
         auto r = box.run(runArgs(graph, {"--frames", "1", "--output", output}));
         EXPECT_EQ(r.code, 2) << r.all();
-        expectOneErrorLine(r, {output, "writing would destroy it"});
-        EXPECT_EQ(fileSums(work()), graphs);
+        expectOneError(r, {output, "writing would destroy it"});
+        EXPECT_EQ(checksums(work()), graphs);
     }
 }
 
 TEST_F(CliNothingLost, GraphDotOverItsGraphOrAnInputFrameIsRefused) {
     fs::copy_file(graphDir() / "copy.json", work() / "g.json");
-    const auto graphs = fileSums(work());
+    const auto graphs = checksums(work());
     for (const std::string out : {"g.json", "scene/noisy/frame_0002.exr"}) {
         SCOPED_TRACE(out);
         auto r = box.run(
             {"graph", "g.json", "--input", "scene/noisy/frame_####.exr", "--dot", "-o", out});
         EXPECT_EQ(r.code, 2) << r.all();
-        expectOneErrorLine(r, {"output " + out, "(-o)", "writing would destroy it"});
-        EXPECT_EQ(fileSums(work()), graphs);
+        expectOneError(r, {"output " + out, "(-o)", "writing would destroy it"});
+        EXPECT_EQ(checksums(work()), graphs);
     }
     auto ok = box.run({"graph", "g.json", "--dot", "-o", "g.dot"});
     EXPECT_EQ(ok.code, 0) << ok.all();
@@ -254,7 +233,7 @@ TEST_F(CliNothingLost, FarmPlanOverAnInputFrameIsRefused) {
                       "scene/noisy/frame_####.exr", "--output", "out/c.####.exr", "--frames", "1-3",
                       "--chunk", "2", "--out", "scene/noisy/frame_0001.exr"});
     EXPECT_EQ(r.code, 2) << r.all();
-    expectOneErrorLine(r, {"scene/noisy/frame_0001.exr", "(--out)", "--input"});
+    expectOneError(r, {"scene/noisy/frame_0001.exr", "(--out)", "--input"});
     expectInputsUntouched();
 }
 
@@ -262,7 +241,7 @@ TEST_F(CliNothingLost, ScenegenIntoARenderFolderNeedsForce) {
     auto r = box.run({"scenegen", "--out", "scene", "--width", "16", "--height", "12", "--frames",
                       "1", "--spp", "1", "--seed", "7"});
     EXPECT_EQ(r.code, 2) << r.all();
-    expectOneErrorLine(r, {"--out scene", "not empty", "--force"});
+    expectOneError(r, {"--out scene", "not empty", "--force"});
     expectInputsUntouched();
     auto forced = box.run({"scenegen", "--out", "scene", "--width", "16", "--height", "12",
                            "--frames", "1", "--spp", "1", "--seed", "7", "--force"});
@@ -394,7 +373,7 @@ TEST_F(CliNothingLost, FarmPlanOfAGraphThatCannotRunIsRefused) {
                           "--output", c.output, "--frames", "1-3", "--chunk", "2", "--out",
                           "plan.sh"});
         EXPECT_EQ(r.code, 2) << r.all();
-        expectOneErrorLine(r, {c.needles.front()});
+        expectOneError(r, {c.needles.front()});
         for (const auto& n : c.needles) EXPECT_NE(r.err.find(n), std::string::npos) << r.all();
         EXPECT_FALSE(fs::exists(work() / "plan.sh"));
     }
@@ -425,7 +404,7 @@ TEST_F(CliNothingLost, BenchMistakesExitTwoWithTheReason) {
         SCOPED_TRACE(args[1] + " " + c.args.back());
         auto r = box.run(args);
         EXPECT_EQ(r.code, 2) << r.all();
-        expectOneErrorLine(r, {c.needle});
+        expectOneError(r, {c.needle});
         EXPECT_EQ(r.err.find("no graph could run"), std::string::npos) << r.all();
     }
     expectInputsUntouched();
@@ -439,7 +418,7 @@ TEST_F(CliNothingLost, FrameNumberInAFolderNameIsRefusedBeforeFrameOne) {
         auto r = box.run(runArgs((graphDir() / "copy.json").string(),
                                  {"--frames", "1-2", "--output", out}));
         EXPECT_EQ(r.code, 2) << r.all();
-        expectOneErrorLine(r, {"'" + out + "'", "frame number in a folder name", "e.g. out/c."});
+        expectOneError(r, {"'" + out + "'", "frame number in a folder name", "e.g. out/c."});
         EXPECT_FALSE(fs::exists(work() / "out")) << "written before the refusal";
     }
 }
@@ -456,7 +435,7 @@ TEST_F(CliNothingLost, OutputNameTooLongForItsTemporaryIsRefusedBeforeFrameOne) 
         auto r = box.run(runArgs((graphDir() / "copy.json").string(),
                                  {"--frames", "1-2", "--output", named(bytes)}));
         EXPECT_EQ(r.code, 2) << r.all();
-        expectOneErrorLine(r, {"(output.path, frame 1)", std::to_string(bytes) + " bytes",
+        expectOneError(r, {"(output.path, frame 1)", std::to_string(bytes) + " bytes",
                                "NAME_MAX", "use at most " + std::to_string(nameMax - 16)});
         EXPECT_FALSE(fs::exists(work() / "out"));
     }
@@ -603,7 +582,7 @@ TEST_F(CliNothingLost, OutOfMemoryNamesTheFrameAndTheFileThatDeclaredItsSize) {
                             "forged/frame_####.exr", "--output", "out/c.####.exr", "--threads", "2"},
                            150000);
     EXPECT_EQ(r.code, 1) << r.all();
-    expectOneErrorLine(r, {"frame 2: out of memory", "3200x3200 frame (the previous was 32x24)",
+    expectOneError(r, {"frame 2: out of memory", "3200x3200 frame (the previous was 32x24)",
                            "forged/frame_0002.exr declares"});
     EXPECT_TRUE(fs::exists(work() / "out" / "c.0001.exr")) << "frame 1 fits: it is written";
 }
