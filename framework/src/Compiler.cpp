@@ -563,9 +563,12 @@ private:
             if (n.absent) {
                 g_->report.pruned.push_back({n.name, n.absentWhy});
             } else if (n.live) {
-                std::string why = kIdentityForItsParameters;
-                if (!n.notes.empty()) why = n.notes.back();
-                g_->report.elided.push_back({n.name, why});
+                // Without a note of its own the pass is the identity for its parameters.
+                if (n.notes.empty())
+                    g_->report.elided.push_back(
+                        {n.name, "identity for this scene (outputs forwarded)", true});
+                else
+                    g_->report.elided.push_back({n.name, n.notes.back(), false});
             } else {
                 g_->report.pruned.push_back({n.name, "contributes to no output"});
             }

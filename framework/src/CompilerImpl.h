@@ -8,12 +8,6 @@
 
 namespace kestrel {
 
-/// The reason an elided pass gets when it gave no note of its own: the identity for its
-/// parameters (AntiLag with enabled false, an A-Trous iteration past `iterations`), not for a
-/// fact of the scene (which a pass says in a note: TAA on a point-sampled render).
-inline constexpr const char* kIdentityForItsParameters =
-    "identity for this scene (outputs forwarded)";
-
 struct NodeState {
     std::string name;
     const PassType* type = nullptr;

@@ -10,7 +10,6 @@
 #include <string>
 #include <vector>
 
-#include "CompilerImpl.h"
 #include "kestrel/Compiler.h"
 
 namespace kestrel {
@@ -45,7 +44,7 @@ public:
         // so) counts as reached: the override took effect. One elided for a fact of the scene
         // (TAA on a point-sampled render) does not.
         for (const auto& p : c.report().elided)
-            if (p.reason == kIdentityForItsParameters)
+            if (p.forItsParameters)
                 live_.insert(p.pass);
             else
                 leftOut_[p.pass] = p.reason;

@@ -33,6 +33,10 @@ struct CompileOptions {
 struct LeftOutPass {
     std::string pass;
     std::string reason;
+    /// Elided as the identity for its own parameters (AntiLag with enabled false, an A-Trous
+    /// iteration past `iterations`), not for a fact of the scene the pass noted (TAA on a
+    /// point-sampled render): an override of its parameters took effect.
+    bool forItsParameters = false;
 };
 
 struct CompileReport {
