@@ -109,7 +109,7 @@ void multipart(const std::string& path) {
 }
 
 /// Copies `from` to `to` with its data and display windows forged to w x h, pixels unchanged:
-/// a header declaring far more than the file holds (issue 40, item 10).
+/// a header declaring far more than the file holds (the loader must refuse it before allocating).
 void oversized(const std::string& from, const std::string& to, int32_t w, int32_t h) {
     std::ifstream in(from, std::ios::binary);
     std::string bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};

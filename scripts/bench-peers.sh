@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Whole-process speed against a CPU SVGF peer, timed side by side in one run (issue 17):
+# Whole-process speed against a CPU SVGF peer, timed side by side in one run (docs/benchmarks.md):
 # Howl144's GAMES202 homework 5 (github.com/Howl144/GAMES202, commit 2493d98, folder
 # Assignment5/, a public repository), against `kestrel run graphs/svgf.json` on the same frames
 # (GAMES202 layout, EXR in and out, load + compute + write of every frame).

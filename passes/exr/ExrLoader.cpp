@@ -1001,8 +1001,8 @@ static void fillZeroVectors(const Factor& fallback, const std::map<ChannelRef, f
 
 namespace {
 
-// No render's light, depth (1e10 on the sky), vector or id comes near this; issue 40 reported
-// -1e38 albedo in one frame leaving values up to 3.8e8 in the history nine frames later.
+// No render's light, depth (1e10 on the sky), vector or id comes near this; an input with
+// -1e38 albedo in one frame once left values up to 3.8e8 in the history nine frames later.
 constexpr float kAbsurd = 1e30f;
 
 /// Replaces NaN, infinite and absurd (|v| > kAbsurd) values of a plane by `fill`; how many.

@@ -3,7 +3,7 @@
 // previous output.
 //   - history arrives already resampled (a Reprojection instance with filter "catmullrom", fed
 //     by a history edge taa.color -> reproj.prevColor): bilinear resampling blurs, and the blur
-//     accumulates frame after frame (design.md section 7);
+//     accumulates frame after frame (docs/design.md section 6, reprojection);
 //   - where historyLength is 0 (disocclusion) the history is dropped, not clipped: a clip box
 //     on high-contrast texture is too wide to reject a ghost;
 //   - the history is clipped (or clamped) in YCoCg to the current 3x3 neighbourhood's

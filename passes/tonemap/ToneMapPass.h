@@ -1,6 +1,6 @@
 #pragma once
 // ToneMap: linear HDR colour -> display-referred [0,1] colour, for previews and image metrics
-// (PSNR/SSIM on tone-mapped values, design.md section 5).
+// (PSNR/SSIM on tone-mapped values, docs/design.md section 7).
 #include <kestrel/Kestrel.h>
 
 namespace kestrel::passes {

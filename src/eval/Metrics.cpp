@@ -254,7 +254,7 @@ double relMse(const ImageView& out, const ImageView& ref) {
     for (int c = 0; c < kRgb; ++c) {
         const float *o = out.channel(c), *r = ref.channel(c);
         for (size_t i = 0; i < n; ++i) {
-            // design.md section 5; in double so that FLT_MAX (a sanitised Inf) stays finite.
+            // docs/design.md section 7; in double so that FLT_MAX (a sanitised Inf) stays finite.
             const double d = double(o[i]) - double(r[i]);
             total += d * d / (double(r[i]) * double(r[i]) + 1e-2);
         }

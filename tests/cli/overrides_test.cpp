@@ -1,4 +1,4 @@
-// Tuning that never silently does nothing (issue 41; docs/graphs.md, "--set and --sweep"): an
+// Tuning that never silently does nothing (docs/graphs.md, "--set and --sweep"): an
 // override that reaches only passes this render leaves out is refused naming what would reach
 // a live one; a misspelt one is one line with a suggestion; group parameters have a type and a
 // range; a frame range past the sequence's end fails before frame 1. Tiny generated scenes: the

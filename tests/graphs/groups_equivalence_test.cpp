@@ -1,5 +1,5 @@
 // The shipped SVGF graphs written with groups (graphs/lib/svgf-chain.json, extends/drop) compute
-// what the flat graphs they replaced computed (issue 16). tests/graphs/flat/ keeps those flat
+// what the flat graphs they replaced computed. tests/graphs/flat/ keeps those flat
 // files as they were before the rewrite, with the graph changes made since written into them
 // by a one-off script (commit 4917c75: each chain's colour history mixed by a Mix pass; the
 // specular chain's atrous3 and atrous4 given iterations 3, so they pass through and are left out

@@ -1,4 +1,4 @@
-// End-to-end quality of the shipped graphs on generated scenes with a reference (issue 4):
+// End-to-end quality of the shipped graphs on generated scenes with a reference:
 // SVGF against the 1-spp input, against single-frame filtering, temporal stability, convergence
 // on a static camera; graphs adapting to scenes that lack AOVs; the GAMES202 graphs on a
 // GAMES202-layout sequence. The numbers in the comments were measured on the scenes below.

@@ -280,7 +280,7 @@ TEST_P(QualityRegions, NoRegionWorseThanInputAndFrameGains) {
 
 INSTANTIATE_TEST_SUITE_P(Quality, QualityRegions, testing::ValuesIn(allCases()), caseName);
 
-// TAA must earn its place where it runs (anti-aliased renders, issue 14): on Blender's usual
+// TAA must earn its place where it runs (anti-aliased renders): on Blender's usual
 // denoising set-up (1.5 px pixel filter, jittered G-buffer, anti-aliased reference) svgf.json
 // beats svgf-notaa.json. Its history reprojection runs without the depth/normal tests, which
 // on a jittered G-buffer rejected the edges TAA anti-aliases (measured frames 5-12: 30.20 dB

@@ -95,7 +95,7 @@ std::string readGraphOutputFromSinks(GraphDesc& g, const Registry& r) {
     return output;
 }
 
-// SVGF as described in design.md section 4, used until graphs/svgf.json lands: demodulate,
+// SVGF as the paper describes it (Schied et al. 2017), used until graphs/svgf.json lands: demodulate,
 // reprojection (motion), temporal accumulation, 5 A-Trous iterations (feedback of the first),
 // modulate.
 const char* kSvgfFallback = R"({"kestrel": 1, "name": "svgf-stability",
@@ -156,7 +156,7 @@ const char* kSvgfFallback = R"({"kestrel": 1, "name": "svgf-stability",
     {"from": "modulate.color", "to": "output.color"}],
   "outputs": []})";
 
-// GAMES202 pipeline (design.md section 4), used until graphs/games202-jbf.json lands.
+// GAMES202 pipeline (homework 5), used until graphs/games202-jbf.json lands.
 const char* kJbfFallback = R"({"kestrel": 1, "name": "jbf-stability",
   "passes": [
     {"name": "input", "type": "ExrLoader"},

@@ -1,5 +1,5 @@
 #pragma once
-// Test rig of the stability suite (design.md section 6): the real pass plugins loaded into a
+// Test rig of the stability suite (docs/design.md section 8): the real pass plugins loaded into a
 // registry, a test-only source pass that emits hand-made (or scenegen-rendered) AOVs so extreme
 // values can be injected at exact pixels, the shipped graphs rewired onto that source, and a
 // runner that executes a graph frame after frame through kestrel::Executor.
@@ -100,7 +100,7 @@ namespace stability {
 /// The scenegen path tracer as a source: every AOV and the camera/object matrices of each frame,
 /// rendered in memory (no EXR round trip).
 Scenario sceneGenScenario(const kestrel::scenegen::SceneOptions& options);
-/// design.md section 5: mean((x - r)^2 / (r^2 + 1e-2)) over planar RGB.
+/// docs/design.md section 7: mean((x - r)^2 / (r^2 + 1e-2)) over planar RGB.
 double relMse(const std::vector<float>& out, const std::vector<float>& ref);
 
 }  // namespace stability

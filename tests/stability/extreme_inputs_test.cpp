@@ -1,4 +1,4 @@
-// design.md section 6 on the SVGF and GAMES202 graphs: hand-made extreme AOVs injected at exact
+// docs/design.md section 8 on the SVGF and GAMES202 graphs: hand-made extreme AOVs injected at exact
 // pixels through the test source. Every case asserts: each frame's output finite and inside the
 // plausible range of the input radiance after sanitising (NaN/Inf become 0), and the same bits
 // with 1 and 2 threads.

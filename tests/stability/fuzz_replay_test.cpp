@@ -110,7 +110,7 @@ std::string loaderError(const std::string& pattern) {
 TEST(FuzzReplay, OversizedHeadersAreRefusedBeforeAllocatingAtTheDefaultLimits) {
     // The corpus replay runs under a 2^16-pixel limit, which refuses them first; under the
     // default limit the header's own claims against the file's size (its offset table, its
-    // pixels: issue 40, item 10) must refuse them, before any allocation of that size.
+    // pixels) must refuse them, before any allocation of that size.
     const auto files = corpus("exr_fuzzer");
     int oversized = 0;
     Scratch s;

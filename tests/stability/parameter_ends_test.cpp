@@ -1,4 +1,4 @@
-// Parameters at the ends of their ranges (design.md section 6: alpha 0 and 1, sigma tiny and
+// Parameters at the ends of their ranges (docs/design.md section 8: alpha 0 and 1, sigma tiny and
 // huge, A-Trous steps larger than the image...). Enumerated from the registry's declarations, so
 // a parameter added later is covered too: for every pass type in the graph, every Float/Int
 // parameter is set to its declared minimum and maximum (every choice for Enum, both values for

@@ -1,4 +1,4 @@
-// Values beyond the half-float range at write time (design.md section 6): the ExrWriter plugin,
+// Values beyond the half-float range at write time (docs/design.md section 8): the ExrWriter plugin,
 // run in a graph, must clamp to +-65504 (half) and never store Inf or NaN in the file.
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>

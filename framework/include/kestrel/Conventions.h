@@ -1,6 +1,6 @@
 #pragma once
 // In-memory data conventions every loader produces and every pass may rely on
-// (design.md section 3). Loaders convert each file layout to these.
+// (docs/canonical-layout.md, docs/layouts.md). Loaders convert each file layout to these.
 #include <cstdint>
 
 namespace kestrel {

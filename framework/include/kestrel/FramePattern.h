@@ -1,5 +1,5 @@
 #pragma once
-// Frame-numbered file names, with oiiotool's grammar (design.md, style.md item 10):
+// Frame-numbered file names, with oiiotool's grammar:
 //   frame.####.exr  a run of N '#' is N digits, zero padded; a single '#' means 4 digits
 //   frame.@@@.exr   each '@' is one digit (zero padded to the run's length)
 //   frame.%04d.exr  printf style, zero padded to the given width; %d is unpadded

@@ -18,7 +18,7 @@ namespace kestrel::px {
 constexpr float kMaxRadiance = 1e16f;
 constexpr float kFloatMax = std::numeric_limits<float>::max();
 
-/// Rec. 709 luminance (design.md section 4).
+/// Rec. 709 luminance (docs/design.md section 7).
 inline float luminance(float r, float g, float b) {
     return 0.2126f * r + 0.7152f * g + 0.0722f * b;
 }

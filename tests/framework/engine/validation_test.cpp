@@ -153,7 +153,7 @@ TEST(Validation, ParameterTypeAndRange) {
         {"name": "c", "type": "AddOne", "params": {"alpha": 1.5}}],
         "edges": [{"from": "src.out", "to": "a.in"}, {"from": "a.out", "to": "b.in"},
                   {"from": "b.out", "to": "c.in"}]})");
-    // The exact wording the design promises (design.md section 2), with the parameter by name.
+    // The exact wording docs/design.md section 3 promises, with the parameter by name.
     bool exact = false;
     for (const auto& x : d)
         exact = exact ||

@@ -128,7 +128,7 @@ TEST(TemporalAccumulation, RecurringBrightSampleRisesThroughTheClamp) {
 
 // A block of hugely negative radiance (-1e10 passes the loader) is as damaged as its
 // neighbours, so they cannot bound it; its valid history can. It entered unclamped and held the
-// history negative for frames (issue 40, item 4). Without a history it is left as it is.
+// history negative for frames. Without a history it is left as it is.
 TEST(TemporalAccumulation, NegativeBlockIsHeldToItsHistorysLowerBound) {
     Image cur = constant(5, 5, Format::Float3, -1e10f);
     History hist{constant(5, 5, Format::Float3, 0.5f), constant(5, 5, Format::Float2, 0.5f),

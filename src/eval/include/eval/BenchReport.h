@@ -1,6 +1,6 @@
 #pragma once
 // The report of `kestrel bench`: error against a reference versus run time for several graphs or
-// parameter settings, so that a user can pick a pipeline (design.md sections 1 and 5).
+// parameter settings, so that a user can pick a pipeline (metrics: docs/design.md section 7).
 //
 // writeBenchReport(report, dir) writes
 //   bench.md            summary and per-pass tables (Markdown)

@@ -1,5 +1,5 @@
 #pragma once
-// Error metrics of an output image against a reference (design.md section 5).
+// Error metrics of an output image against a reference (docs/design.md section 7, "Measuring").
 //
 // Conventions (every metric uses them the same way):
 // - Inputs are planar float images (Float3 or Float4; only R, G, B are used). Both images must
@@ -11,8 +11,8 @@
 // - PSNR, SSIM and temporal instability are computed on display values d = T(x) in [0, 1], with
 //   T the chosen tone map (ToneMap below; default Reinhard with gamma 2.2:
 //   d = clamp(x / (1 + x), 0, 1)^(1/2.2) per channel, negatives clamped to 0 first). This default
-//   reproduces design.md section 7's "1-spp input" row on the Blender sample (PSNR 15.6, SSIM
-//   0.111).
+//   reproduces the 1-spp input's figures on the Blender sample room given in docs/design.md
+//   section 7 (PSNR 15.6, SSIM 0.111).
 // - PSNR = 10 log10(1 / MSE) over pixels and R,G,B, with MSE floored at 1e-10 (PSNR <= 100 dB,
 //   so identical images give 100, not +inf, and means stay finite).
 // - SSIM: Wang, Bovik, Sheikh, Simoncelli 2004, eq. 13 with an 11x11 Gaussian window, sigma 1.5,
