@@ -75,7 +75,7 @@ TEST_F(CliOverrides, SetOnALeftOutChainIsRefusedNamingWhatReachesALiveOne) {
     for (const char* scene : {"room", "street"}) {
         r = svgf("graph", scene, {"--set", "*.sigmaL=6", "--set", "*.iterations=3"});
         EXPECT_EQ(r.code, 0) << scene << "\n" << r.all();
-        // One that makes its pass the identity (left out, as the README says) reached it.
+        // One that makes its pass the identity (left out: docs/design.md section 3) reached it.
         for (const char* set : {"*.antilag.enabled=false", "diffuse.antilag.enabled=false"}) {
             if (std::string(scene) == "room" && set[0] == 'd') continue;  // no split: no diffuse
             r = svgf("graph", scene, {"--set", set});
