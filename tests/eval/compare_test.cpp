@@ -1,5 +1,6 @@
 // Sequence comparison behind `kestrel compare`: frame discovery, temporal term, errors naming the
-// file, table and JSON; and the 1-spp Blender sample against its reference (docs/design.md section 7).
+// file, table and JSON; and the 1-spp Blender sample against its reference (docs/design.md
+// section 7).
 #include <eval/Compare.h>
 #include <gtest/gtest.h>
 #include <kestrel/Error.h>
@@ -136,8 +137,8 @@ TEST(Compare, BlenderOneSppAgainstReference) {
     o.refPattern = (room / "ref/frame_####.exr").string();
     o.frames = {5, 6, 7, 8, 9, 10, 11, 12};
     CompareResult r = compareSequences(o);
-    // docs/design.md section 7, the 1-spp input: relMSE 0.505, PSNR 15.6, SSIM 0.111 (tone map: Reinhard
-    // with gamma 2.2). Measured: 0.5048, 15.64 dB, 0.1107; temporal 0.1618.
+    // docs/design.md section 7, the 1-spp input: relMSE 0.505, PSNR 15.6, SSIM 0.111 (tone map:
+    // Reinhard with gamma 2.2). Measured: 0.5048, 15.64 dB, 0.1107; temporal 0.1618.
     EXPECT_NEAR(r.mean.relMse, 0.505, 0.002);
     EXPECT_NEAR(r.mean.psnr, 15.6, 0.1);
     EXPECT_NEAR(r.mean.ssim, 0.111, 0.002);

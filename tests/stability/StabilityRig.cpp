@@ -95,9 +95,9 @@ std::string readGraphOutputFromSinks(GraphDesc& g, const Registry& r) {
     return output;
 }
 
-// SVGF as the paper describes it (Schied et al. 2017), used until graphs/svgf.json lands: demodulate,
-// reprojection (motion), temporal accumulation, 5 A-Trous iterations (feedback of the first),
-// modulate.
+// SVGF as the paper describes it (Schied et al. 2017), used until graphs/svgf.json lands:
+// demodulate, reprojection (motion), temporal accumulation, 5 A-Trous iterations (feedback of the
+// first), modulate.
 const char* kSvgfFallback = R"({"kestrel": 1, "name": "svgf-stability",
   "passes": [
     {"name": "input", "type": "ExrLoader"},

@@ -1,6 +1,6 @@
-// docs/design.md section 8 on the SVGF and GAMES202 graphs: hand-made extreme AOVs injected at exact
-// pixels through the test source. Every case asserts: each frame's output finite and inside the
-// plausible range of the input radiance after sanitising (NaN/Inf become 0), and the same bits
+// docs/design.md section 8 on the SVGF and GAMES202 graphs: hand-made extreme AOVs injected at
+// exact pixels through the test source. Every case asserts: each frame's output finite and inside
+// the plausible range of the input radiance after sanitising (NaN/Inf become 0), and the same bits
 // with 1 and 2 threads.
 #include <gtest/gtest.h>
 

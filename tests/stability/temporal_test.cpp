@@ -1,6 +1,6 @@
-// Temporal stability (docs/design.md section 8): one NaN pixel must not poison 100 frames of history,
-// runs are bitwise deterministic, a camera cut is recovered from, and a 1000-frame static run
-// converges towards the reference without drift.
+// Temporal stability (docs/design.md section 8): one NaN pixel must not poison 100 frames of
+// history, runs are bitwise deterministic, a camera cut is recovered from, and a 1000-frame static
+// run converges towards the reference without drift.
 #include <gtest/gtest.h>
 #include <scenegen/SceneGen.h>
 

@@ -1,5 +1,5 @@
-// Values beyond the half-float range at write time (docs/design.md section 8): the ExrWriter plugin,
-// run in a graph, must clamp to +-65504 (half) and never store Inf or NaN in the file.
+// Values beyond the half-float range at write time (docs/design.md section 8): the ExrWriter
+// plugin, run in a graph, must clamp to +-65504 (half) and never store Inf or NaN in the file.
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
