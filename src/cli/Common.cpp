@@ -159,9 +159,23 @@ std::string markSinkInput(GraphDesc& g, const Registry& reg, bool detach) {
     auto isSinkName = [&](const std::string& n) {
         return std::find(sinks.begin(), sinks.end(), n) != sinks.end();
     };
-    std::string marked;
+    // The edge into a writer's required input (its colour), not the first edge into it: a graph
+    // that extends another and rewires the colour lists the optional alpha edge first.
+    auto required = [&](const EdgeDesc& e) {
+        for (const auto& p : g.passes)
+            if (p.name == e.toPass)
+                for (const auto& port : reg.find(p.type)->desc.ports)
+                    if (port.name == e.toPort)
+                        return port.kind == PortKind::Input && !port.optional;
+        return false;
+    };
+    std::string marked, fallback;
     for (const auto& e : g.edges)
-        if (isSinkName(e.toPass) && marked.empty()) marked = e.fromPass + "." + e.fromPort;
+        if (isSinkName(e.toPass)) {
+            if (marked.empty() && required(e)) marked = e.fromPass + "." + e.fromPort;
+            if (fallback.empty()) fallback = e.fromPass + "." + e.fromPort;
+        }
+    if (marked.empty()) marked = fallback;
     if (marked.empty())
         throw Error("graph '" + g.name + "' has no writer whose input could be measured");
     if (detach) {

@@ -2,6 +2,7 @@
 // in the crops where the error is worst, per-pass times that add up, --rounds.
 #include <map>
 #include <sstream>
+#include <vector>
 
 #include "CliRunner.h"
 
@@ -145,4 +146,33 @@ TEST(CliBench, RoundsGiveEachSettingItsSpread) {
     }
     EXPECT_EQ(checked, 2);
     EXPECT_EQ(box.run({"bench", "--rounds", "0"}).code, 2) << "--rounds 0 accepted";
+}
+
+TEST(CliBench, EveryShippedGraphIsMeasuredOnAPointSampledScene) {
+    // bench measures what a graph writes as colour: svgf-notaa (svgf.json less its TAA, its
+    // colour edge rewired) lists the writer's optional alpha edge first, and was skipped on every
+    // scene with "input.alpha cannot be produced" where the scene has no alpha.
+    Sandbox box;
+    if (!makeScene(box, box.work() / "scene", 48, 32, 3))
+        GTEST_SKIP() << "no scenegen in this build";
+    const std::string graphs = std::string(KESTREL_SOURCE_DIR) + "/graphs/";
+    const CliResult r =
+        box.run({"bench", graphs + "svgf.json", graphs + "svgf-notaa.json", "--input",
+                 "scene/noisy/frame_####.exr", "--reference", "scene/ref/frame_####.exr",
+                 "--threads", "2", "--rounds", "1", "--report", "rep"});
+    ASSERT_EQ(r.code, 0) << r.all();
+    EXPECT_EQ(r.all().find("skipped"), std::string::npos) << r.all();
+    // On a point-sampled render the two graphs compute the same (svgf.json's TAA is left out):
+    // the same relMSE, PSNR, SSIM and temporal figures (bench.csv's columns 2-5).
+    std::istringstream table(readText(box.work() / "rep" / "bench.csv"));
+    std::map<std::string, std::string> errors;
+    for (std::string line; std::getline(table, line);) {
+        std::vector<std::string> cells;
+        std::istringstream row(line);
+        for (std::string c; std::getline(row, c, ',');) cells.push_back(c);
+        if (cells.size() > 4) errors[cells[0]] = cells[1] + cells[2] + cells[3] + cells[4];
+    }
+    ASSERT_TRUE(errors.count("svgf") && errors.count("svgf-notaa"))
+        << readText(box.work() / "rep" / "bench.csv");
+    EXPECT_EQ(errors["svgf"], errors["svgf-notaa"]);
 }
