@@ -59,6 +59,35 @@ public:
         return s->view;
     }
     std::span<float* const> idlePlanes() const override { return idle; }
+
+    // By handle: the slots are in the PassDesc's port order, so a handle's index is its slot.
+    const Slot* at(int index, PortKind kind) const {
+        return index >= 0 && size_t(index) < slots.size() && slots[size_t(index)].port->kind == kind
+                   ? &slots[size_t(index)]
+                   : nullptr;
+    }
+    bool has(const InputPort& p) const override {
+        const Slot* s = at(p.index, PortKind::Input);
+        return s && s->bound && s->valid;
+    }
+    const ImageView& input(const InputPort& p) const override {
+        const Slot* s = at(p.index, PortKind::Input);
+        if (!s || !s->bound || !s->valid) return input(std::string_view(p.name));  // its error
+        return s->view;
+    }
+    bool historyValid(const InputPort& p) const override {
+        const Slot* s = at(p.index, PortKind::Input);
+        return s && s->port->history && s->bound && s->valid;
+    }
+    bool has(const OutputPort& p) const override {
+        const Slot* s = at(p.index, PortKind::Output);
+        return s && s->bound;
+    }
+    const ImageView& output(const OutputPort& p) override {
+        const Slot* s = at(p.index, PortKind::Output);
+        if (!s || !s->bound) return output(std::string_view(p.name));  // its error
+        return s->view;
+    }
 };
 
 }  // namespace

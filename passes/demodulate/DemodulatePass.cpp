@@ -43,14 +43,15 @@ void demodulateRow(int w, const float* src, const float* a, const float* __restr
 
 /// The pass for this target (its parameters as arguments).
 void executeOnTarget(FrameContext& ctx, PassIO& io, float albedoFloor_) {
-    const ImageView& color = io.input("color");
-    const ImageView* albedo = io.hasInput("albedo") ? &io.input("albedo") : nullptr;
-    const ImageView* emission = io.hasInput("emission") ? &io.input("emission") : nullptr;
-    const ImageView& out = io.output("illumination");
-    const ImageView* albedoOut = albedo && io.hasOutput("albedo") ? &io.output("albedo") : nullptr;
+    const DemodulatePass::Declaration& d = DemodulatePass::declaration();
+    const ImageView& color = io.input(d.color);
+    const ImageView* albedo = io.has(d.albedo) ? &io.input(d.albedo) : nullptr;
+    const ImageView* emission = io.has(d.emission) ? &io.input(d.emission) : nullptr;
+    const ImageView& out = io.output(d.illumination);
+    const ImageView* albedoOut = albedo && io.has(d.albedoOut) ? &io.output(d.albedoOut) : nullptr;
     // With object ids the filters keep an emitter apart from the lit objects around it: the
     // albedo Modulate multiplies by is demodulationAlbedo's (see the albedo output).
-    const bool guard = !io.hasInput("objectId");
+    const bool guard = !io.has(d.objectId);
     // A zero floor would divide by zero on black albedo: keep the divisor a normal float.
     const float floor = std::max(albedoFloor_, 1e-8f);
     const int w = ctx.extent.width;
@@ -78,43 +79,47 @@ HWY_EXPORT(executeOnTarget);
 
 using namespace kestrel;
 
-PassDesc DemodulatePass::describe() {
-    PassDesc d("Demodulate",
-               "Divides the emission-free radiance by the albedo: illumination = (color - emission)"
-               " / albedo (channels with albedo below albedoFloor are not demodulated). Identity "
-               "when neither albedo nor emission is bound.");
-    d.input("color", Format::Float3, "noisy radiance")
-        .optionalInput("albedo", Format::Float3, "surface albedo to divide out")
-        .optionalInput("emission", Format::Float3, "emitted radiance to subtract first")
-        .output("illumination", Format::Float3, "demodulated illumination (finite)")
-        .inPlaceOf("color")
-        .optionalInput("objectId", Format::Int32,
-                       "object ids, when the render has them (not read: with them the filters "
-                       "keep an emitter apart from the lit objects around it)")
-        .output("albedo", Format::Float3,
-                "the albedo to multiply back by (Modulate's albedo): the input albedo, 1 below "
-                "albedoFloor (not demodulated). Without object ids, below the floor it is 1 "
-                "only where the pixel has light of its own in this colour and the floor where "
-                "it has none (the light is then 0), so what the filters spread into a black "
-                "pixel (an emitter's) from the lit surface around it comes back scaled by the "
-                "floor. Absent without an albedo")
-        .inPlaceOf("albedo")
-        .paramFloat("albedoFloor", 1e-3, 0.0, 1.0,
-                    "lower bound of the albedo divisor (dark albedo would amplify noise)");
+DemodulatePass::Declaration::Declaration()
+    : kestrel::Declaration<Params>(
+          "Demodulate",
+          "Divides the emission-free radiance by the albedo: illumination = (color - emission) / "
+          "albedo (channels with albedo below albedoFloor are not demodulated). Identity when "
+          "neither albedo nor emission is bound.") {
+    color = input("color", Format::Float3, "noisy radiance");
+    albedo = optionalInput("albedo", Format::Float3, "surface albedo to divide out");
+    emission = optionalInput("emission", Format::Float3, "emitted radiance to subtract first");
+    illumination =
+        output("illumination", Format::Float3, "demodulated illumination (finite)", &color);
+    objectId = optionalInput("objectId", Format::Int32,
+                             "object ids, when the render has them (not read: with them the "
+                             "filters keep an emitter apart from the lit objects around it)");
+    albedoOut = output(
+        "albedo", Format::Float3,
+        "the albedo to multiply back by (Modulate's albedo): the input albedo, 1 below "
+        "albedoFloor (not demodulated). Without object ids, below the floor it is 1 only where "
+        "the pixel has light of its own in this colour and the floor where it has none (the "
+        "light is then 0), so what the filters spread into a black pixel (an emitter's) from the "
+        "lit surface around it comes back scaled by the floor. Absent without an albedo",
+        &albedo);
+    param("albedoFloor", &Params::albedoFloor, 0.0, 1.0,
+          "lower bound of the albedo divisor (dark albedo would amplify noise)");
+}
+
+const DemodulatePass::Declaration& DemodulatePass::declaration() {
+    static const Declaration d;
     return d;
 }
 
-DemodulatePass::DemodulatePass(const ParamValues& p) : albedoFloor_(p.getFloat("albedoFloor")) {}
-
 void DemodulatePass::resolve(ResolveContext& rc) {
-    if (!rc.isBound("albedo")) rc.setAbsent("albedo", "no albedo is bound");
-    if (!rc.isBound("albedo") && !rc.isBound("emission")) {
-        rc.forward("illumination", "color");
+    const Declaration& d = declaration();
+    if (!rc.isBound(d.albedo)) rc.setAbsent(d.albedoOut, "no albedo is bound");
+    if (!rc.isBound(d.albedo) && !rc.isBound(d.emission)) {
+        rc.forward(d.illumination, d.color);
         rc.note("no albedo and no emission bound: illumination is the colour itself");
     }
 }
 
 void DemodulatePass::execute(FrameContext& ctx, PassIO& io) {
-    HWY_DYNAMIC_DISPATCH(executeOnTarget)(ctx, io, albedoFloor_);
+    HWY_DYNAMIC_DISPATCH(executeOnTarget)(ctx, io, p_.albedoFloor);
 }
 #endif  // HWY_ONCE

@@ -5,11 +5,22 @@
 
 class DemodulatePass final : public kestrel::Pass {
 public:
-    static kestrel::PassDesc describe();
-    explicit DemodulatePass(const kestrel::ParamValues& p);
+    struct Params {
+        float albedoFloor = 1e-3f;
+    };
+    /// Ports and parameters, declared once (kestrel/Declare.h).
+    struct Declaration : kestrel::Declaration<Params> {
+        Declaration();
+        kestrel::InputPort color, albedo, emission, objectId;
+        kestrel::OutputPort illumination, albedoOut;
+    };
+    static const Declaration& declaration();
+
+    static kestrel::PassDesc describe() { return declaration().desc(); }
+    explicit DemodulatePass(const kestrel::ParamValues& p) : p_(declaration().read(p)) {}
     void resolve(kestrel::ResolveContext& rc) override;
     void execute(kestrel::FrameContext& ctx, kestrel::PassIO& io) override;
 
 private:
-    float albedoFloor_;
+    Params p_;
 };

@@ -7,11 +7,22 @@
 
 class MixPass final : public kestrel::Pass {
 public:
-    static kestrel::PassDesc describe();
-    explicit MixPass(const kestrel::ParamValues& p);
+    struct Params {
+        float weight = 0.5f;
+    };
+    /// Ports and parameters, declared once (kestrel/Declare.h).
+    struct Declaration : kestrel::Declaration<Params> {
+        Declaration();
+        kestrel::InputPort a, b;
+        kestrel::OutputPort color;
+    };
+    static const Declaration& declaration();
+
+    static kestrel::PassDesc describe() { return declaration().desc(); }
+    explicit MixPass(const kestrel::ParamValues& p) : p_(declaration().read(p)) {}
     void resolve(kestrel::ResolveContext& rc) override;
     void execute(kestrel::FrameContext& ctx, kestrel::PassIO& io) override;
 
 private:
-    float weight_;
+    Params p_;
 };

@@ -1,6 +1,7 @@
 #pragma once
 // Everything a pass plugin needs.
 #include "kestrel/Conventions.h"
+#include "kestrel/Declare.h"
 #include "kestrel/Error.h"
 #include "kestrel/Format.h"
 #include "kestrel/FrameContext.h"

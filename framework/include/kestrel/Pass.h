@@ -83,6 +83,17 @@ struct PassDesc {
     const ParamDesc* findParam(std::string_view name) const;
 };
 
+/// A port as a typed declaration returns it (kestrel/Declare.h): its place in the pass type's
+/// PassDesc, and its name. Passes read and write through handles, so a misspelt port does not
+/// compile and PassIO finds it by index.
+template <PortKind K>
+struct PortHandle {
+    int index = -1;
+    std::string name;
+};
+using InputPort = PortHandle<PortKind::Input>;
+using OutputPort = PortHandle<PortKind::Output>;
+
 /// Compile-time view of one pass instance: which inputs the scene and graph can feed, and how
 /// the pass adapts. Unbound optional inputs are never read, allocated or computed.
 class ResolveContext {
@@ -111,6 +122,14 @@ public:
     virtual void setFact(std::string /*key*/, std::string /*value*/) {}
     /// A fact some source stated, or nullopt.
     virtual std::optional<std::string> fact(std::string_view /*key*/) const { return std::nullopt; }
+    bool isBound(const InputPort& p) const { return isBound(p.name); }
+    void forward(const OutputPort& o, const InputPort& i) { forward(o.name, i.name); }
+    void setAbsent(const OutputPort& o, std::string reason) {
+        setAbsent(o.name, std::move(reason));
+    }
+    void ignoreInput(const InputPort& p, std::string reason) {
+        ignoreInput(p.name, std::move(reason));
+    }
     /// Sequence facts a source needs at compile time.
     virtual int64_t firstFrame() const = 0;
     virtual std::string_view passName() const = 0;
@@ -143,6 +162,14 @@ public:
     /// are undefined on entry and belong to later passes after execute returns, so use them only
     /// within execute, on its own threads. Empty where the plan has no idle plane (and in tests).
     virtual std::span<float* const> idlePlanes() const { return {}; }
+
+    /// The same by handle (kestrel/Declare.h): the executor finds the port by its index; other
+    /// implementations (test harnesses) by its name.
+    virtual bool has(const InputPort& p) const { return hasInput(p.name); }
+    virtual const ImageView& input(const InputPort& p) const { return input(p.name); }
+    virtual bool historyValid(const InputPort& p) const { return historyValid(p.name); }
+    virtual bool has(const OutputPort& p) const { return hasOutput(p.name); }
+    virtual const ImageView& output(const OutputPort& p) { return output(p.name); }
 };
 
 /// The relative step of the scene's stored depth (the fact kDepthPrecisionFact, clamped to

@@ -12,7 +12,8 @@
 
 #include "kestrel/Registry.h"
 
-#define KESTREL_PLUGIN_ABI_VERSION 3u
+// 4: PassIO reads ports by handle (kestrel/Declare.h).
+#define KESTREL_PLUGIN_ABI_VERSION 4u
 
 namespace kestrel {
 

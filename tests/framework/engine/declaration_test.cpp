@@ -1,0 +1,129 @@
+// Typed pass declarations (kestrel/Declare.h): the PassDesc derived from them, parameters read
+// into the struct with the struct's defaults, and ports reached by handle in a compiled graph
+// (the executor by index, a handle's port found even where another port has the same name).
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "TestPasses.h"
+
+namespace kestrel::enginetest {
+namespace {
+
+enum class Mode { Add, Scale };
+
+/// out = in + offset (Add) or in * offset (Scale); `bias` is an optional input added after, and
+/// an output named like it (`bias`) echoes it, so a lookup by name could confuse the two.
+class TypedPass final : public Pass {
+public:
+    struct Params {
+        float offset = 2.5f;
+        int repeat = 1;
+        bool enabled = true;
+        Mode mode = Mode::Add;
+    };
+    struct Declaration : kestrel::Declaration<Params> {
+        Declaration() : kestrel::Declaration<Params>("Typed", "typed declaration under test") {
+            in = input("in", Format::Float, "the value");
+            bias = optionalInput("bias", Format::Float, "added last");
+            out = output("out", Format::Float, "the result", &in);
+            biasOut = output("bias", Format::Float, "the bias, echoed");
+            param("offset", &Params::offset, -10.0, 10.0, "operand");
+            param("repeat", &Params::repeat, 1, 4, "times the operation is applied");
+            param("enabled", &Params::enabled, "false: out = in");
+            param("mode", &Params::mode, {"add", "scale"}, "operation");
+        }
+        InputPort in, bias;
+        OutputPort out, biasOut;
+    };
+    static const Declaration& declaration() {
+        static const Declaration d;
+        return d;
+    }
+    static PassDesc describe() { return declaration().desc(); }
+    explicit TypedPass(const ParamValues& p) : p_(declaration().read(p)) {}
+    void resolve(ResolveContext& rc) override {
+        const Declaration& d = declaration();
+        if (!p_.enabled) rc.forward(d.out, d.in);
+        if (!rc.isBound(d.bias)) rc.setAbsent(d.biasOut, "no bias");
+    }
+    void execute(FrameContext&, PassIO& io) override {
+        const Declaration& d = declaration();
+        const ImageView& in = io.input(d.in);
+        const ImageView* bias = io.has(d.bias) ? &io.input(d.bias) : nullptr;
+        if (io.has(d.out))
+            for (size_t i = 0; i < in.pixels(); ++i) {
+                float v = in.channel(0)[i];
+                for (int k = 0; k < p_.repeat; ++k)
+                    v = p_.mode == Mode::Add ? v + p_.offset : v * p_.offset;
+                io.output(d.out).channel(0)[i] = v + (bias ? bias->channel(0)[i] : 0.f);
+            }
+        if (bias && io.has(d.biasOut))
+            for (size_t i = 0; i < in.pixels(); ++i)
+                io.output(d.biasOut).channel(0)[i] = bias->channel(0)[i];
+    }
+
+private:
+    Params p_;
+};
+
+float run(const std::string& json, const std::string& output) {
+    Registry r = testRegistry();
+    r.add<TypedPass>();
+    auto g = compileText(json, r);
+    Parallel par(1);
+    Executor ex(*g, par, {}, Extent{2, 2});
+    ex.runFrame(1);
+    return ex.output(output).at(0, 1, 1);
+}
+
+}  // namespace
+
+TEST(Declaration, DescribesPortsInOrderAndParametersWithTheStructsDefaults) {
+    const PassDesc d = TypedPass::describe();
+    const auto& decl = TypedPass::declaration();
+    ASSERT_EQ(d.ports.size(), 4u);
+    for (const auto* h : {&decl.in, &decl.bias}) EXPECT_EQ(d.ports[size_t(h->index)].name, h->name);
+    EXPECT_EQ(d.ports[size_t(decl.out.index)].kind, PortKind::Output);
+    EXPECT_EQ(d.ports[size_t(decl.biasOut.index)].name, "bias");
+    EXPECT_TRUE(d.ports[size_t(decl.bias.index)].optional);
+    EXPECT_EQ(d.ports[size_t(decl.out.index)].inPlaceOf, "in");
+    EXPECT_EQ(std::get<double>(d.findParam("offset")->defaultValue), 2.5);
+    EXPECT_EQ(std::get<int64_t>(d.findParam("repeat")->defaultValue), 1);
+    EXPECT_EQ(std::get<bool>(d.findParam("enabled")->defaultValue), true);
+    EXPECT_EQ(std::get<std::string>(d.findParam("mode")->defaultValue), "add");
+}
+
+TEST(Declaration, ParametersArriveAsTheStruct) {
+    const std::string graph = R"({"kestrel": 1, "passes": [{"name": "c", "type": "Const",
+        "params": {"value": 3}}, {"name": "t", "type": "Typed", "params": PARAMS}],
+        "edges": [{"from": "c.out", "to": "t.in"}], "outputs": ["t.out"]})";
+    auto with = [&](const std::string& params) {
+        std::string g = graph;
+        g.replace(g.find("PARAMS"), 6, params);
+        return run(g, "t.out");
+    };
+    EXPECT_FLOAT_EQ(with("{}"), 5.5f);  // 3 + 2.5, the declared defaults
+    EXPECT_FLOAT_EQ(with(R"({"offset": 1, "repeat": 3})"), 6.f);
+    EXPECT_FLOAT_EQ(with(R"({"offset": 2, "repeat": 2, "mode": "scale"})"), 12.f);
+    EXPECT_FLOAT_EQ(with(R"({"enabled": false})"), 3.f);  // forwarded by handle
+}
+
+TEST(Declaration, HandlesReachTheirOwnPortWhereNamesRepeat) {
+    // The input `bias` and the output `bias` share a name; each handle reaches its own.
+    const float out = run(R"({"kestrel": 1, "passes": [{"name": "c", "type": "Const",
+        "params": {"value": 3}}, {"name": "b", "type": "Const", "params": {"value": 10}},
+        {"name": "t", "type": "Typed"}],
+        "edges": [{"from": "c.out", "to": "t.in"}, {"from": "b.out", "to": "t.bias"}],
+        "outputs": ["t.out", "t.bias"]})",
+                          "t.out");
+    EXPECT_FLOAT_EQ(out, 15.5f);
+    EXPECT_FLOAT_EQ(run(R"({"kestrel": 1, "passes": [{"name": "c", "type": "Const"},
+        {"name": "b", "type": "Const", "params": {"value": 10}}, {"name": "t", "type": "Typed"}],
+        "edges": [{"from": "c.out", "to": "t.in"}, {"from": "b.out", "to": "t.bias"}],
+        "outputs": ["t.bias"]})",
+                        "t.bias"),
+                    10.f);
+}
+
+}  // namespace kestrel::enginetest
