@@ -539,6 +539,7 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
             try {
                 ExrInput in(p, maxPixels_);
                 sets[role] = channelNames(in.header());
+                if (std::string(role) == "beauty") rememberFirstFrame(first, in);
             } catch (const Error& e) {
                 throw Error(p + ": " + e.what());
             }
@@ -560,6 +561,7 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
             throw Error(firstPath + ": " + e.what());
         }
         sets[""] = channelNames(in->header());
+        rememberFirstFrame(first, *in);
         const auto layers = blenderLayers(sets[""]);
         const auto* tag = in->header().findTypedAttribute<Imf::StringAttribute>("kestrel.layout");
         Layout layout = Layout::Canonical;
@@ -882,6 +884,22 @@ ExrInput& ExrLoader::openRole(const std::string& role, int64_t frame) {
     return *open_.back().second;
 }
 
+void ExrLoader::rememberFirstFrame(int64_t frame, const ExrInput& in) {
+    firstFrame_ = {frame, in.path(), in.displayWindow().width(), in.displayWindow().height()};
+}
+
+void ExrLoader::checkFrameSize(const ExrInput& in) const {
+    const int64_t W = in.displayWindow().width(), H = in.displayWindow().height();
+    if (firstFrame_.path.empty() || (W == firstFrame_.width && H == firstFrame_.height)) return;
+    // A re-render at another size mid-shot (or a stray file): filtering it with the history of
+    // the others is meaningless, and resetting history silently hid it (issue 40).
+    throw FrameError(fmt::format(
+        "frame {}: {}: the frame is {}x{}, the first frame ({}, frame {}) is {}x{}: every frame "
+        "of a sequence must have the first frame's size (--skip-bad-frames skips it)",
+        frame_, in.path(), W, H, firstFrame_.path, firstFrame_.frame, firstFrame_.width,
+        firstFrame_.height));
+}
+
 void ExrLoader::fillScene(int64_t frame, SceneData& scene) {
     scene = SceneData{};
     if (plan_.layout == Layout::Blender && cameras_) {
@@ -944,6 +962,7 @@ std::optional<Extent> ExrLoader::beginFrame(FrameContext& ctx) {
     std::string primary = plan_.layout == Layout::Games202 ? "beauty" : "";
     ExrInput& in = openRole(primary, frame_);
     display_ = in.displayWindow();
+    checkFrameSize(in);
     // Channels the first frame had must still be there (a half-written or foreign file).
     const Imf::ChannelList& list = in.header().channels();
     for (const auto& r : plan_.recipes) {

@@ -44,6 +44,10 @@ private:
     void ensurePlan(int64_t frame, std::vector<std::string>* notes);
     std::string filePath(const std::string& role, int64_t frame) const;
     ExrInput& openRole(const std::string& role, int64_t frame);
+    /// Throws FrameError naming the file and frame when this frame's size is not the first
+    /// frame's: history of one size cannot filter a frame of another.
+    void checkFrameSize(const ExrInput& in) const;
+    void rememberFirstFrame(int64_t frame, const ExrInput& in);
     /// NaN, infinite and absurd values of this frame's outputs replaced by each output's fill
     /// value (docs/layouts.md), with one warning per frame counting them by channel.
     void replaceAbsurdValues(FrameContext& ctx, PassIO& io,
@@ -103,6 +107,12 @@ private:
     bool games202Matrices_ = false;
     bool colorHalf_ = false;  // every channel of the colour is stored as half
     bool depthHalf_ = false;  // the depth channel is stored as half
+    struct FirstFrame {
+        int64_t frame = 0;
+        std::string path;
+        int64_t width = 0, height = 0;
+    };
+    FirstFrame firstFrame_;  // the probed first frame: every frame must have its size
 
     // this frame's open files (headers read in beginFrame / on first use)
     int64_t frame_ = 0;
