@@ -19,6 +19,7 @@
 #include <map>
 #include <set>
 
+#include "Absurd.h"
 #include "PixelJitter.h"
 #include "Unproject.h"
 
@@ -91,7 +92,8 @@ void floatsToIds(float* plane, size_t n, IdRule rule) {
 /// by OpenEXR. Throws what OpenEXR throws.
 void readChannels(ExrInput& in, const Box& dp, int W, size_t N,
                   const std::vector<std::pair<std::string, float*>>& chans,
-                  const std::vector<float>& fillv, int threads, const Workspace& lent = {}) {
+                  const std::vector<float>& fillv, int threads, const Workspace& lent = {},
+                  const std::vector<AbsurdFix>& fixes = {}) {
     const Box dw = in.dataWindow();
     const bool covers = dw.x0 <= dp.x0 && dw.y0 <= dp.y0 && dw.x1 >= dp.x1 && dw.y1 >= dp.y1;
     const bool inside = dw.x0 >= dp.x0 && dw.y0 >= dp.y0 && dw.x1 <= dp.x1 && dw.y1 <= dp.y1;
@@ -102,8 +104,10 @@ void readChannels(ExrInput& in, const Box& dp, int W, size_t N,
     if (ix0 > ix1 || iy0 > iy1) return;  // no overlap: fill values only
     if (const ZipScanlines* zip = in.zip()) {
         std::string why;
-        if (zip->decode(dp, W, chans, fillv, threads, &why, nullptr, lent)) return;
+        if (zip->decode(dp, W, chans, fillv, threads, &why, nullptr, lent, fixes)) return;
         spdlog::debug("ExrLoader: {}: {}; reading it through OpenEXR", in.path(), why);
+        for (const AbsurdFix& f : fixes)
+            if (f.replaced) *f.replaced = 0;  // counted again below
     }
     Imf::FrameBuffer fb;
     std::vector<float> clip;  // only when the data window pokes out of the display
@@ -136,6 +140,9 @@ void readChannels(ExrInput& in, const Box& dp, int W, size_t N,
                 float* dst = chans[k].second + size_t(y - dp.y0) * size_t(W) + size_t(ix0 - dp.x0);
                 std::copy(src, src + (ix1 - ix0 + 1), dst);
             }
+    // OpenEXR's path (other compressions, damaged files): a pass of its own over the planes.
+    for (size_t k = 0; k < fixes.size(); ++k)
+        if (fixes[k].on) *fixes[k].replaced += replaceAbsurd(chans[k].second, N, fixes[k].fill);
 }
 using Planes = std::map<ChannelRef, float*>;
 
@@ -321,7 +328,8 @@ void ExrLoader::joinPrefetch() {
     if (prefetchJob_.valid()) prefetchJob_.get();  // the job catches everything itself
 }
 
-void ExrLoader::startPrefetch(int64_t frame, const std::map<ChannelRef, float>& fills) {
+void ExrLoader::startPrefetch(int64_t frame, const std::map<ChannelRef, float>& fills,
+                              const std::set<ChannelRef>& direct) {
     joinPrefetch();  // execute without beginFrame (tests): never two read-aheads at once
     if (pending_) {
         spare_ = std::move(pending_->planes);
@@ -339,6 +347,7 @@ void ExrLoader::startPrefetch(int64_t frame, const std::map<ChannelRef, float>& 
     std::vector<std::string> roles{primary};
     std::vector<std::vector<std::pair<std::string, float*>>> chans(1);
     std::vector<std::vector<float>> fillv(1);
+    std::vector<std::vector<AbsurdFix>> fixes(1);
     for (const auto& [ref, fill] : fills) {
         auto it = std::find(roles.begin(), roles.end(), ref.file);
         size_t k = size_t(it - roles.begin());
@@ -346,11 +355,13 @@ void ExrLoader::startPrefetch(int64_t frame, const std::map<ChannelRef, float>& 
             roles.push_back(ref.file);
             chans.emplace_back();
             fillv.emplace_back();
+            fixes.emplace_back();
         }
         auto sp = spare_.find(ref);
         PlaneStorage plane = sp != spare_.end() ? std::move(sp->second) : allocatePlane(N);
         chans[k].emplace_back(ref.name, plane.get());
         fillv[k].push_back(fill);
+        fixes[k].push_back({direct.count(ref) > 0, fill, &job->replaced[ref]});
         job->planes[ref] = std::move(plane);
     }
     spare_.clear();
@@ -358,9 +369,10 @@ void ExrLoader::startPrefetch(int64_t frame, const std::map<ChannelRef, float>& 
     cancel_ = false;
     Prefetch* P = pending_.get();
     const Box display = display_;
-    prefetchJob_ = std::async(
-        std::launch::async, [this, P, roles = std::move(roles), chans = std::move(chans),
-                             fillv = std::move(fillv), display, W, N, threads = threads_] {
+    prefetchJob_ =
+        std::async(std::launch::async, [this, P, roles = std::move(roles), chans = std::move(chans),
+                                        fillv = std::move(fillv), fixes = std::move(fixes), display,
+                                        W, N, threads = threads_] {
             try {
                 for (const auto& role : roles) {
                     if (cancel_) return;
@@ -371,8 +383,8 @@ void ExrLoader::startPrefetch(int64_t frame, const std::map<ChannelRef, float>& 
                 for (size_t k = 0; k < roles.size(); ++k) {
                     if (cancel_) return;
                     if (!chans[k].empty())
-                        readChannels(*P->open[k].second, display, W, N, chans[k], fillv[k],
-                                     threads);
+                        readChannels(*P->open[k].second, display, W, N, chans[k], fillv[k], threads,
+                                     {}, fixes[k]);
                 }
                 P->ok = true;
             } catch (...) {
@@ -1018,42 +1030,60 @@ static void fillZeroVectors(const Factor& fallback, const std::map<ChannelRef, f
             for (int c = 0; c < 3; ++c) o[c][i] = -f[c][i];
 }
 
-namespace {
-
-// No render's light, depth (1e10 on the sky), vector or id comes near this; issue 40 reported
-// -1e38 albedo in one frame leaving values up to 3.8e8 in the history nine frames later.
-constexpr float kAbsurd = 1e30f;
-
-/// Replaces NaN, infinite and absurd (|v| > kAbsurd) values of a plane by `fill`; how many.
-size_t replaceAbsurd(FrameContext& ctx, float* plane, int W, int H, float fill) {
-    std::atomic<size_t> count{0};
-    ctx.parallelRows(H, [&](int y0, int y1) {
-        size_t n = 0;
-        for (float* v = plane + size_t(y0) * size_t(W); v < plane + size_t(y1) * size_t(W); ++v)
-            if (!(std::fabs(*v) <= kAbsurd)) *v = fill, ++n;
-        if (n) count += n;
-    });
-    return count.load();
-}
-
-}  // namespace
-
-void ExrLoader::replaceAbsurdValues(FrameContext& ctx, PassIO& io,
-                                    const std::vector<const Recipe*>& active, int W, int H) {
+/// Warns once for the frame, counting by output channel, where the policy replaced values.
+void ExrLoader::warnReplaced(const std::vector<std::pair<std::string, size_t>>& replaced) const {
     std::string counts;
-    for (const Recipe* r : active) {
-        const ImageView& out = io.output(r->output);
-        for (int c = 0; c < std::max(1, out.channels()); ++c)
-            if (const size_t n = replaceAbsurd(ctx, asFloats(out, c), W, H, r->fill))
-                counts += fmt::format("{}{} in {}.{}", counts.empty() ? "" : ", ", n, r->output,
-                                      "RGBA"[std::min(c, 3)]);
-    }
+    for (const auto& [channel, n] : replaced)
+        if (n) counts += fmt::format("{}{} in {}", counts.empty() ? "" : ", ", n, channel);
     // One line per frame: a whole damaged sequence says so on every frame it damages.
     if (!counts.empty())
         spdlog::warn(
             "frame {}: {}: NaN, infinite or absurd (|v| > 1e30) input values replaced by the "
             "output's fill value, as for a missing channel (docs/layouts.md): {}",
             frame_, open_.empty() ? path_ : open_.front().second->path(), counts);
+}
+
+/// A computed output (positions, normals from depth): its absurd values replaced by `fill`
+/// in a pass of its own (renders without those passes only); how many per channel.
+static std::array<size_t, 4> replaceAbsurdInPlanes(FrameContext& ctx, const ImageView& out, int W,
+                                                   int H, float fill) {
+    std::array<std::atomic<size_t>, 4> count{};
+    ctx.parallelRows(H, [&](int y0, int y1) {
+        for (int c = 0; c < std::min(4, out.channels()); ++c)
+            if (const size_t n = replaceAbsurd(asFloats(out, c) + size_t(y0) * size_t(W),
+                                               size_t(y1 - y0) * size_t(W), fill))
+                count[size_t(c)] += n;
+    });
+    return {count[0].load(), count[1].load(), count[2].load(), count[3].load()};
+}
+
+/// The values the policy replaced this frame per output channel ("color.R"), in plan order:
+/// decoded channels counted by the decoder (a channel copied to a second output counts there
+/// too), sums by their blocks; outputs computed from depth are checked here.
+static std::vector<std::pair<std::string, size_t>> replacedByOutput(
+    FrameContext& ctx, PassIO& io, const std::vector<const Recipe*>& active,
+    const std::vector<const Recipe*>& composite,
+    const std::vector<std::array<std::atomic<size_t>, 4>>& compositeReplaced,
+    const std::map<ChannelRef, std::atomic<size_t>>& decoded, int W, int H) {
+    std::vector<std::pair<std::string, size_t>> counts;
+    for (const Recipe* r : active) {
+        if (r->reflectionOf) continue;  // 0 or 1 only
+        const ImageView& out = io.output(r->output);
+        std::array<size_t, 4> n{};
+        if (r->fromDepth) {
+            n = replaceAbsurdInPlanes(ctx, out, W, H, r->fill);
+        } else if (r->isDirect()) {
+            for (size_t c = 0; c < r->terms[0][0].size() && c < 4; ++c)
+                n[c] = decoded.at(r->terms[0][0][c]).load();
+        } else {
+            const size_t k =
+                size_t(std::find(composite.begin(), composite.end(), r) - composite.begin());
+            for (size_t c = 0; c < 4; ++c) n[c] = compositeReplaced[k][c].load();
+        }
+        for (int c = 0; c < std::min(4, std::max(1, out.channels())); ++c)
+            counts.emplace_back(r->output + "." + "RGBA"[c], n[size_t(c)]);
+    }
+    return counts;
 }
 
 void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
@@ -1114,7 +1144,14 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
         fills[mask] = isMask ? float(kBackgroundId) : 0.f;
     }
 
-    // Decode, file by file.
+    // Decode, file by file. A channel decoded straight into its output has its absurd values
+    // replaced as it is decoded (Absurd.h); scratch channels are raw until summed.
+    std::set<ChannelRef> direct;
+    for (const Recipe* r : active)
+        if (r->isDirect() && !r->fromDepth && !r->reflectionOf)
+            for (const auto& c : r->terms[0][0]) direct.insert(c);
+    std::map<ChannelRef, std::atomic<size_t>> replaced;
+    for (const auto& ref : direct) replaced[ref];  // no insertion while decoding threads add
     channelsRead_.clear();
     std::map<std::string, std::vector<std::pair<std::string, float*>>> byFile;
     for (const auto& [ref, plane] : dest) {
@@ -1130,6 +1167,8 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
         fileBytes += size_t(fs::file_size(in.path(), ec));
         if (adopted) {
             for (const auto& [name, plane] : chans) {
+                if (direct.count({role, name}))
+                    replaced[{role, name}] = ready_->replaced[{role, name}].load();
                 const float* src = ready_->planes[{role, name}].get();
                 float* dst = plane;
                 ctx.parallelRows(H, [&](int y0, int y1) {
@@ -1140,13 +1179,19 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
             continue;
         }
         std::vector<float> fillv;
-        for (const auto& [name, plane] : chans) fillv.push_back(fills[{role, name}]);
+        std::vector<AbsurdFix> fixes;
+        for (const auto& [name, plane] : chans) {
+            const ChannelRef ref{role, name};
+            fillv.push_back(fills[ref]);
+            fixes.push_back(
+                {direct.count(ref) > 0, fills[ref], direct.count(ref) ? &replaced[ref] : nullptr});
+        }
         try {
             // The chunk buffers in planes the graph's memory plan leaves idle while the loader
             // runs, rather than in memory of their own on top of the plan's (docs/benchmarks.md).
             const Workspace lent{io.idlePlanes(), ctx.extent.pixels() * sizeof(float)};
             readChannels(in, display_, W, N, chans, fillv,
-                         ctx.parallel ? ctx.parallel->threadCount() : 1, lent);
+                         ctx.parallel ? ctx.parallel->threadCount() : 1, lent, fixes);
         } catch (const std::exception& e) {
             throw FrameError("frame " + std::to_string(frame_) + ": " + in.path() +
                              ": cannot read pixels (corrupt or truncated): " + e.what());
@@ -1168,12 +1213,16 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
         io.hasOutput("specular") && io.hasOutput("color") && io.hasOutput("diffuse") &&
         !plan_.find("color")->absent && !plan_.find("diffuse")->absent)
         fastRest = spec;
-    // Sums of products (Blender light passes times their colour passes), block by block.
+    // Sums of products (Blender light passes times their colour passes), block by block, each
+    // block's absurd values replaced while it is in cache (a non-finite pass adds no light to
+    // the rest: addRest).
+    std::vector<std::array<std::atomic<size_t>, 4>> compositeReplaced(composite.size());
     ctx.parallelRows(H, [&](int y0, int y1) {
         const size_t end = size_t(y1) * size_t(W);
         for (size_t b = size_t(y0) * size_t(W); b < end; b += kCompositeBlock) {
             const size_t e = std::min(end, b + kCompositeBlock);
-            for (const Recipe* r : composite) {
+            for (size_t k = 0; k < composite.size(); ++k) {
+                const Recipe* r = composite[k];
                 const ImageView& out = io.output(r->output);
                 const int C = r->format == Format::Int32 ? 1 : channelCount(r->format);
                 for (int c = 0; c < C; ++c) {
@@ -1190,6 +1239,8 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
                     else if (r->rest)
                         addRest(*r->rest, dest, c, emissionBound || r->output == "emission", o, b,
                                 e);
+                    if (const size_t n = replaceAbsurd(o, e - b, r->fill))
+                        compositeReplaced[k][size_t(c)] += n;
                 }
             }
         }
@@ -1207,9 +1258,8 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
     for (const Recipe* r : active)
         if (r->reflectionOf) reflectionMask(ctx, *r->reflectionOf, dest, io.output(r->output), N);
 
-    // After the sums (a non-finite Blender pass adds no light to the rest: addRest) and before
-    // the conventions (ids still floats): nothing non-finite or absurd leaves the loader.
-    replaceAbsurdValues(ctx, io, active, W, H);
+    // Before the conventions (ids still floats): nothing non-finite or absurd leaves the loader.
+    warnReplaced(replacedByOutput(ctx, io, active, composite, compositeReplaced, replaced, W, H));
 
     // Convention fixes, in place: scales (motion y), background depth, then ids to int32.
     for (const Recipe* r : active) {
@@ -1253,7 +1303,7 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
         spdlog::debug("ExrLoader: channels read: {}", list);
         logged_ = true;
     }
-    if (prefetch_) startPrefetch(frame_ + step_, fills);
+    if (prefetch_) startPrefetch(frame_ + step_, fills, direct);
 }
 
 }  // namespace kestrel::exr
