@@ -577,14 +577,22 @@ TEST_F(CliNothingLost, OutOfMemoryNamesTheFrameAndTheFileThatDeclaredItsSize) {
     for (const char* f : {"frame_0001.exr", "frame_0002.exr"})
         fs::copy_file(work() / "scene" / "noisy" / f, work() / "forged" / f);
     forgeWindows(work() / "forged" / "frame_0002.exr", 3200, 3200);
-    auto r = box.runWithin(60,
-                           {"run", (graphDir() / "copy.json").string(), "--input",
-                            "forged/frame_####.exr", "--output", "out/c.####.exr", "--threads", "2"},
-                           150000);
+    const std::vector<std::string> args = {"run",      (graphDir() / "copy.json").string(),
+                                           "--input",  "forged/frame_####.exr",
+                                           "--output", "out/c.####.exr",
+                                           "--threads", "2"};
+    // Mid-sequence: not the first frame's size, refused before anything is allocated.
+    auto r = box.runWithin(60, args, 150000);
     EXPECT_EQ(r.code, 1) << r.all();
-    expectOneError(r, {"frame 2: out of memory", "3200x3200 frame (the previous was 32x24)",
-                           "forged/frame_0002.exr declares"});
+    expectOneError(r, {"frame 2", "forged/frame_0002.exr", "3200x3200", "32x24"});
     EXPECT_TRUE(fs::exists(work() / "out" / "c.0001.exr")) << "frame 1 fits: it is written";
+    // As the first frame: its planes are allocated, and running out names the frame and file.
+    auto first = args;
+    first.insert(first.end(), {"--frames", "2"});
+    auto oom = box.runWithin(60, first, 150000);
+    EXPECT_EQ(oom.code, 1) << oom.all();
+    expectOneError(oom, {"frame 2: out of memory", "3200x3200 frame",
+                         "forged/frame_0002.exr declares"});
 }
 
 }  // namespace
