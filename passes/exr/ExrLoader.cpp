@@ -142,7 +142,8 @@ void readChannels(ExrInput& in, const Box& dp, int W, size_t N,
             }
     // OpenEXR's path (other compressions, damaged files): a pass of its own over the planes.
     for (size_t k = 0; k < fixes.size(); ++k)
-        if (fixes[k].on) *fixes[k].replaced += replaceAbsurd(chans[k].second, N, fixes[k].fill);
+        if (fixes[k].on)
+            *fixes[k].replaced += replaceAbsurd(chans[k].second, N, fixes[k].fill, fixes[k].lowest);
 }
 using Planes = std::map<ChannelRef, float*>;
 
@@ -329,7 +330,7 @@ void ExrLoader::joinPrefetch() {
 }
 
 void ExrLoader::startPrefetch(int64_t frame, const std::map<ChannelRef, float>& fills,
-                              const std::set<ChannelRef>& direct) {
+                              const std::map<ChannelRef, float>& direct) {
     joinPrefetch();  // execute without beginFrame (tests): never two read-aheads at once
     if (pending_) {
         spare_ = std::move(pending_->planes);
@@ -361,7 +362,9 @@ void ExrLoader::startPrefetch(int64_t frame, const std::map<ChannelRef, float>& 
         PlaneStorage plane = sp != spare_.end() ? std::move(sp->second) : allocatePlane(N);
         chans[k].emplace_back(ref.name, plane.get());
         fillv[k].push_back(fill);
-        fixes[k].push_back({direct.count(ref) > 0, fill, &job->replaced[ref]});
+        const auto d = direct.find(ref);
+        fixes[k].push_back({d != direct.end(), fill, &job->replaced[ref],
+                            d != direct.end() ? d->second : -kAbsurd});
         job->planes[ref] = std::move(plane);
     }
     spare_.clear();
@@ -1038,8 +1041,9 @@ void ExrLoader::warnReplaced(const std::vector<std::pair<std::string, size_t>>& 
     // One line per frame: a whole damaged sequence says so on every frame it damages.
     if (!counts.empty())
         spdlog::warn(
-            "frame {}: {}: NaN, infinite or absurd (|v| > 1e30) input values replaced by the "
-            "output's fill value, as for a missing channel (docs/layouts.md): {}",
+            "frame {}: {}: NaN, infinite or absurd (|v| > 1e30, light < -1e8, albedo < 0) input "
+            "values "
+            "replaced by the output's fill value, as for a missing channel (docs/layouts.md): {}",
             frame_, open_.empty() ? path_ : open_.front().second->path(), counts);
 }
 
@@ -1056,6 +1060,40 @@ static std::array<size_t, 4> replaceAbsurdInPlanes(FrameContext& ctx, const Imag
     });
     return {count[0].load(), count[1].load(), count[2].load(), count[3].load()};
 }
+
+namespace {
+
+/// A direct output channel that a sum, the rest or a derived output reads raw: its absurd
+/// values are replaced after them, in [b, e) of its plane, counted (the channel's own plane;
+/// a copy of it in a second output is not counted again).
+struct Deferred {
+    float* plane;
+    float fill, lowest;
+    std::atomic<size_t>* replaced;  // null: a copy
+    bool afterDerived;              // a derived output reads it: after those, in a pass
+    void replace(size_t b, size_t e) const {
+        const size_t n = replaceAbsurd(plane + b, e - b, fill, lowest);
+        if (n && replaced) *replaced += n;
+    }
+};
+
+/// The channels that sums, the rest (Recipe::Rest; fastRest: from the colour, diffuse and
+/// emission planes) and derived outputs read.
+std::set<ChannelRef> channelsReadRaw(const std::vector<const Recipe*>& composite,
+                                     const std::vector<const Recipe*>& derived,
+                                     const Recipe* fastRest, const Plan& plan) {
+    std::set<ChannelRef> raw;
+    for (const auto* list : {&composite, &derived})
+        for (const Recipe* r : *list)
+            for (const auto& c : r->channels()) raw.insert(c);
+    if (fastRest)
+        for (const char* o : {"color", "diffuse", "emission"})
+            if (const Recipe* x = plan.find(o); x && !x->absent && x->isDirect())
+                for (const auto& c : x->terms[0][0]) raw.insert(c);
+    return raw;
+}
+
+}  // namespace
 
 /// The values the policy replaced this frame per output channel ("color.R"), in plan order:
 /// decoded channels counted by the decoder (a channel copied to a second output counts there
@@ -1144,14 +1182,44 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
         fills[mask] = isMask ? float(kBackgroundId) : 0.f;
     }
 
+    // Specular's rest from the colour, diffuse and emission planes when this frame computes
+    // them (they come first in the plan; svgf.json binds all three): three reads per pixel
+    // instead of every split term again, and the emission tightened in place.
+    const Recipe* fastRest = nullptr;
+    const Recipe* spec = plan_.find("specular");
+    const bool emissionBound = io.hasOutput("emission") && !plan_.find("emission")->absent;
+    if (spec->rest && spec->rest->part == Recipe::Rest::Part::Positive &&
+        io.hasOutput("specular") && io.hasOutput("color") && io.hasOutput("diffuse") &&
+        !plan_.find("color")->absent && !plan_.find("diffuse")->absent)
+        fastRest = spec;
+
     // Decode, file by file. A channel decoded straight into its output has its absurd values
-    // replaced as it is decoded (Absurd.h); scratch channels are raw until summed.
-    std::set<ChannelRef> direct;
+    // replaced as it is decoded (Absurd.h), unless a sum, the rest or a derived output reads
+    // it: those read it raw (a non-finite pass adds no light to the rest) and it is replaced
+    // after them (Deferred). Scratch channels stay raw.
+    std::map<ChannelRef, float> direct;  // -> the lowest valid value (its output's)
     for (const Recipe* r : active)
         if (r->isDirect() && !r->fromDepth && !r->reflectionOf)
-            for (const auto& c : r->terms[0][0]) direct.insert(c);
+            for (const auto& c : r->terms[0][0]) direct.emplace(c, lowestValid(r->output));
     std::map<ChannelRef, std::atomic<size_t>> replaced;
-    for (const auto& ref : direct) replaced[ref];  // no insertion while decoding threads add
+    for (const auto& [ref, lowest] : direct)
+        replaced[ref];  // no insertion while decoding threads add
+    const std::set<ChannelRef> readRaw = channelsReadRaw(composite, derived, fastRest, plan_);
+    std::set<ChannelRef> readByDerived;
+    for (const Recipe* r : derived)
+        for (const auto& c : r->channels()) readByDerived.insert(c);
+    std::map<ChannelRef, float> decodeFix;  // direct channels replaced as decoded
+    std::vector<Deferred> deferred;
+    for (const auto& [ref, lowest] : direct) {
+        if (!readRaw.count(ref)) {
+            decodeFix.emplace(ref, lowest);
+            continue;
+        }
+        const bool late = readByDerived.count(ref) > 0;
+        deferred.push_back({dest[ref], fills[ref], lowest, &replaced[ref], late});
+        for (const auto& [plane, r] : copies)
+            if (r == ref) deferred.push_back({plane, fills[ref], lowest, nullptr, late});
+    }
     channelsRead_.clear();
     std::map<std::string, std::vector<std::pair<std::string, float*>>> byFile;
     for (const auto& [ref, plane] : dest) {
@@ -1167,7 +1235,7 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
         fileBytes += size_t(fs::file_size(in.path(), ec));
         if (adopted) {
             for (const auto& [name, plane] : chans) {
-                if (direct.count({role, name}))
+                if (decodeFix.count({role, name}))
                     replaced[{role, name}] = ready_->replaced[{role, name}].load();
                 const float* src = ready_->planes[{role, name}].get();
                 float* dst = plane;
@@ -1183,8 +1251,10 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
         for (const auto& [name, plane] : chans) {
             const ChannelRef ref{role, name};
             fillv.push_back(fills[ref]);
-            fixes.push_back(
-                {direct.count(ref) > 0, fills[ref], direct.count(ref) ? &replaced[ref] : nullptr});
+            const auto d = decodeFix.find(ref);
+            fixes.push_back({d != decodeFix.end(), fills[ref],
+                             d != decodeFix.end() ? &replaced[ref] : nullptr,
+                             d != decodeFix.end() ? d->second : -kAbsurd});
         }
         try {
             // The chunk buffers in planes the graph's memory plan leaves idle while the loader
@@ -1203,19 +1273,9 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
     }
     for (const auto& [dst, ref] : copies) std::copy(dest[ref], dest[ref] + N, dst);
 
-    // Specular's rest from the colour, diffuse and emission planes when this frame computes
-    // them (they come first in the plan; svgf.json binds all three): three reads per pixel
-    // instead of every split term again, and the emission tightened in place.
-    const Recipe* fastRest = nullptr;
-    const Recipe* spec = plan_.find("specular");
-    const bool emissionBound = io.hasOutput("emission") && !plan_.find("emission")->absent;
-    if (spec->rest && spec->rest->part == Recipe::Rest::Part::Positive &&
-        io.hasOutput("specular") && io.hasOutput("color") && io.hasOutput("diffuse") &&
-        !plan_.find("color")->absent && !plan_.find("diffuse")->absent)
-        fastRest = spec;
-    // Sums of products (Blender light passes times their colour passes), block by block, each
-    // block's absurd values replaced while it is in cache (a non-finite pass adds no light to
-    // the rest: addRest).
+    // Sums of products (Blender light passes times their colour passes), block by block; then
+    // the block's absurd values replaced, in the sums and the channels they read (Deferred),
+    // while it is in cache.
     std::vector<std::array<std::atomic<size_t>, 4>> compositeReplaced(composite.size());
     ctx.parallelRows(H, [&](int y0, int y1) {
         const size_t end = size_t(y1) * size_t(W);
@@ -1239,10 +1299,18 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
                     else if (r->rest)
                         addRest(*r->rest, dest, c, emissionBound || r->output == "emission", o, b,
                                 e);
-                    if (const size_t n = replaceAbsurd(o, e - b, r->fill))
-                        compositeReplaced[k][size_t(c)] += n;
                 }
             }
+            for (size_t k = 0; k < composite.size(); ++k) {
+                const Recipe* r = composite[k];
+                const int C = r->format == Format::Int32 ? 1 : channelCount(r->format);
+                for (int c = 0; c < C; ++c)
+                    if (const size_t n = replaceAbsurd(asFloats(io.output(r->output), c) + b, e - b,
+                                                       r->fill, lowestValid(r->output)))
+                        compositeReplaced[k][size_t(c)] += n;
+            }
+            for (const Deferred& d : deferred)
+                if (!d.afterDerived) d.replace(b, e);
         }
     });
     // Positions unprojected from raw depth (before depth's own background convention).
@@ -1257,6 +1325,13 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
 
     for (const Recipe* r : active)
         if (r->reflectionOf) reflectionMask(ctx, *r->reflectionOf, dest, io.output(r->output), N);
+    // The depth a derived output was computed from: a pass of its own (renders without a
+    // position or normal pass only).
+    for (const Deferred& d : deferred)
+        if (d.afterDerived)
+            ctx.parallelRows(H, [&](int y0, int y1) {
+                d.replace(size_t(y0) * size_t(W), size_t(y1) * size_t(W));
+            });
 
     // Before the conventions (ids still floats): nothing non-finite or absurd leaves the loader.
     warnReplaced(replacedByOutput(ctx, io, active, composite, compositeReplaced, replaced, W, H));
@@ -1303,7 +1378,7 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
         spdlog::debug("ExrLoader: channels read: {}", list);
         logged_ = true;
     }
-    if (prefetch_) startPrefetch(frame_ + step_, fills, direct);
+    if (prefetch_) startPrefetch(frame_ + step_, fills, decodeFix);
 }
 
 }  // namespace kestrel::exr

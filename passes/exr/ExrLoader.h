@@ -91,9 +91,9 @@ private:
         bool ok = false;  // false: any failure; the frame is then read as without prefetch
     };
     /// `direct`: the channels decoded straight into an output, whose absurd values the
-    /// decoder replaces (Absurd.h).
+    /// decoder replaces (Absurd.h), each with its output's lowest valid value.
     void startPrefetch(int64_t frame, const std::map<ChannelRef, float>& fills,
-                       const std::set<ChannelRef>& direct);
+                       const std::map<ChannelRef, float>& direct);
     void joinPrefetch();
 
     // parameters

@@ -291,7 +291,7 @@ bool ZipScanlines::decodeChunk(int fd, int chunk, const std::vector<float*>& dst
                 convert(src, j, ch.type, count, row);
                 // While the row is in cache: no second pass over the plane (issue 40).
                 if (fix[c].on)
-                    if (const size_t n = replaceAbsurd(row, count, fix[c].fill))
+                    if (const size_t n = replaceAbsurd(row, count, fix[c].fill, fix[c].lowest))
                         *fix[c].replaced += n;
             }
         }
