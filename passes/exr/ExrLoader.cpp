@@ -19,6 +19,7 @@
 #include <map>
 #include <set>
 
+#include "Absurd.h"
 #include "PixelJitter.h"
 #include "Unproject.h"
 
@@ -91,7 +92,8 @@ void floatsToIds(float* plane, size_t n, IdRule rule) {
 /// by OpenEXR. Throws what OpenEXR throws.
 void readChannels(ExrInput& in, const Box& dp, int W, size_t N,
                   const std::vector<std::pair<std::string, float*>>& chans,
-                  const std::vector<float>& fillv, int threads, const Workspace& lent = {}) {
+                  const std::vector<float>& fillv, int threads, const Workspace& lent = {},
+                  const std::vector<AbsurdFix>& fixes = {}) {
     const Box dw = in.dataWindow();
     const bool covers = dw.x0 <= dp.x0 && dw.y0 <= dp.y0 && dw.x1 >= dp.x1 && dw.y1 >= dp.y1;
     const bool inside = dw.x0 >= dp.x0 && dw.y0 >= dp.y0 && dw.x1 <= dp.x1 && dw.y1 <= dp.y1;
@@ -102,8 +104,10 @@ void readChannels(ExrInput& in, const Box& dp, int W, size_t N,
     if (ix0 > ix1 || iy0 > iy1) return;  // no overlap: fill values only
     if (const ZipScanlines* zip = in.zip()) {
         std::string why;
-        if (zip->decode(dp, W, chans, fillv, threads, &why, nullptr, lent)) return;
+        if (zip->decode(dp, W, chans, fillv, threads, &why, nullptr, lent, fixes)) return;
         spdlog::debug("ExrLoader: {}: {}; reading it through OpenEXR", in.path(), why);
+        for (const AbsurdFix& f : fixes)
+            if (f.replaced) *f.replaced = 0;  // counted again below
     }
     Imf::FrameBuffer fb;
     std::vector<float> clip;  // only when the data window pokes out of the display
@@ -136,6 +140,10 @@ void readChannels(ExrInput& in, const Box& dp, int W, size_t N,
                 float* dst = chans[k].second + size_t(y - dp.y0) * size_t(W) + size_t(ix0 - dp.x0);
                 std::copy(src, src + (ix1 - ix0 + 1), dst);
             }
+    // OpenEXR's path (other compressions, damaged files): a pass of its own over the planes.
+    for (size_t k = 0; k < fixes.size(); ++k)
+        if (fixes[k].on)
+            *fixes[k].replaced += replaceAbsurd(chans[k].second, N, fixes[k].fill, fixes[k].lowest);
 }
 using Planes = std::map<ChannelRef, float*>;
 
@@ -321,7 +329,8 @@ void ExrLoader::joinPrefetch() {
     if (prefetchJob_.valid()) prefetchJob_.get();  // the job catches everything itself
 }
 
-void ExrLoader::startPrefetch(int64_t frame, const std::map<ChannelRef, float>& fills) {
+void ExrLoader::startPrefetch(int64_t frame, const std::map<ChannelRef, float>& fills,
+                              const std::map<ChannelRef, float>& direct) {
     joinPrefetch();  // execute without beginFrame (tests): never two read-aheads at once
     if (pending_) {
         spare_ = std::move(pending_->planes);
@@ -339,6 +348,7 @@ void ExrLoader::startPrefetch(int64_t frame, const std::map<ChannelRef, float>& 
     std::vector<std::string> roles{primary};
     std::vector<std::vector<std::pair<std::string, float*>>> chans(1);
     std::vector<std::vector<float>> fillv(1);
+    std::vector<std::vector<AbsurdFix>> fixes(1);
     for (const auto& [ref, fill] : fills) {
         auto it = std::find(roles.begin(), roles.end(), ref.file);
         size_t k = size_t(it - roles.begin());
@@ -346,11 +356,15 @@ void ExrLoader::startPrefetch(int64_t frame, const std::map<ChannelRef, float>& 
             roles.push_back(ref.file);
             chans.emplace_back();
             fillv.emplace_back();
+            fixes.emplace_back();
         }
         auto sp = spare_.find(ref);
         PlaneStorage plane = sp != spare_.end() ? std::move(sp->second) : allocatePlane(N);
         chans[k].emplace_back(ref.name, plane.get());
         fillv[k].push_back(fill);
+        const auto d = direct.find(ref);
+        fixes[k].push_back({d != direct.end(), fill, &job->replaced[ref],
+                            d != direct.end() ? d->second : -kAbsurd});
         job->planes[ref] = std::move(plane);
     }
     spare_.clear();
@@ -358,9 +372,10 @@ void ExrLoader::startPrefetch(int64_t frame, const std::map<ChannelRef, float>& 
     cancel_ = false;
     Prefetch* P = pending_.get();
     const Box display = display_;
-    prefetchJob_ = std::async(
-        std::launch::async, [this, P, roles = std::move(roles), chans = std::move(chans),
-                             fillv = std::move(fillv), display, W, N, threads = threads_] {
+    prefetchJob_ =
+        std::async(std::launch::async, [this, P, roles = std::move(roles), chans = std::move(chans),
+                                        fillv = std::move(fillv), fixes = std::move(fixes), display,
+                                        W, N, threads = threads_] {
             try {
                 for (const auto& role : roles) {
                     if (cancel_) return;
@@ -371,8 +386,8 @@ void ExrLoader::startPrefetch(int64_t frame, const std::map<ChannelRef, float>& 
                 for (size_t k = 0; k < roles.size(); ++k) {
                     if (cancel_) return;
                     if (!chans[k].empty())
-                        readChannels(*P->open[k].second, display, W, N, chans[k], fillv[k],
-                                     threads);
+                        readChannels(*P->open[k].second, display, W, N, chans[k], fillv[k], threads,
+                                     {}, fixes[k]);
                 }
                 P->ok = true;
             } catch (...) {
@@ -539,6 +554,7 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
             try {
                 ExrInput in(p, maxPixels_);
                 sets[role] = channelNames(in.header());
+                if (std::string(role) == "beauty") rememberFirstFrame(first, in);
             } catch (const Error& e) {
                 throw Error(p + ": " + e.what());
             }
@@ -560,6 +576,7 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
             throw Error(firstPath + ": " + e.what());
         }
         sets[""] = channelNames(in->header());
+        rememberFirstFrame(first, *in);
         const auto layers = blenderLayers(sets[""]);
         const auto* tag = in->header().findTypedAttribute<Imf::StringAttribute>("kestrel.layout");
         Layout layout = Layout::Canonical;
@@ -882,6 +899,22 @@ ExrInput& ExrLoader::openRole(const std::string& role, int64_t frame) {
     return *open_.back().second;
 }
 
+void ExrLoader::rememberFirstFrame(int64_t frame, const ExrInput& in) {
+    firstFrame_ = {frame, in.path(), in.displayWindow().width(), in.displayWindow().height()};
+}
+
+void ExrLoader::checkFrameSize(const ExrInput& in) const {
+    const int64_t W = in.displayWindow().width(), H = in.displayWindow().height();
+    if (firstFrame_.path.empty() || (W == firstFrame_.width && H == firstFrame_.height)) return;
+    // A re-render at another size mid-shot (or a stray file): filtering it with the history of
+    // the others is meaningless, and resetting history silently hid it (issue 40).
+    throw FrameError(fmt::format(
+        "frame {}: {}: the frame is {}x{}, the first frame ({}, frame {}) is {}x{}: every frame "
+        "of a sequence must have the first frame's size (--skip-bad-frames skips it)",
+        frame_, in.path(), W, H, firstFrame_.path, firstFrame_.frame, firstFrame_.width,
+        firstFrame_.height));
+}
+
 void ExrLoader::fillScene(int64_t frame, SceneData& scene) {
     scene = SceneData{};
     if (plan_.layout == Layout::Blender && cameras_) {
@@ -944,6 +977,7 @@ std::optional<Extent> ExrLoader::beginFrame(FrameContext& ctx) {
     std::string primary = plan_.layout == Layout::Games202 ? "beauty" : "";
     ExrInput& in = openRole(primary, frame_);
     display_ = in.displayWindow();
+    checkFrameSize(in);
     // Channels the first frame had must still be there (a half-written or foreign file).
     const Imf::ChannelList& list = in.header().channels();
     for (const auto& r : plan_.recipes) {
@@ -999,42 +1033,95 @@ static void fillZeroVectors(const Factor& fallback, const std::map<ChannelRef, f
             for (int c = 0; c < 3; ++c) o[c][i] = -f[c][i];
 }
 
+/// Warns once for the frame, counting by output channel, where the policy replaced values.
+void ExrLoader::warnReplaced(const std::vector<std::pair<std::string, size_t>>& replaced) const {
+    std::string counts;
+    for (const auto& [channel, n] : replaced)
+        if (n) counts += fmt::format("{}{} in {}", counts.empty() ? "" : ", ", n, channel);
+    // One line per frame: a whole damaged sequence says so on every frame it damages.
+    if (!counts.empty())
+        spdlog::warn(
+            "frame {}: {}: NaN, infinite or absurd (|v| > 1e30, light < -1e8, albedo < 0) input "
+            "values "
+            "replaced by the output's fill value, as for a missing channel (docs/layouts.md): {}",
+            frame_, open_.empty() ? path_ : open_.front().second->path(), counts);
+}
+
+/// A computed output (positions, normals from depth): its absurd values replaced by `fill`
+/// in a pass of its own (renders without those passes only); how many per channel.
+static std::array<size_t, 4> replaceAbsurdInPlanes(FrameContext& ctx, const ImageView& out, int W,
+                                                   int H, float fill) {
+    std::array<std::atomic<size_t>, 4> count{};
+    ctx.parallelRows(H, [&](int y0, int y1) {
+        for (int c = 0; c < std::min(4, out.channels()); ++c)
+            if (const size_t n = replaceAbsurd(asFloats(out, c) + size_t(y0) * size_t(W),
+                                               size_t(y1 - y0) * size_t(W), fill))
+                count[size_t(c)] += n;
+    });
+    return {count[0].load(), count[1].load(), count[2].load(), count[3].load()};
+}
+
 namespace {
 
-// No render's light, depth (1e10 on the sky), vector or id comes near this; an input with
-// -1e38 albedo in one frame once left values up to 3.8e8 in the history nine frames later.
-constexpr float kAbsurd = 1e30f;
+/// A direct output channel that a sum, the rest or a derived output reads raw: its absurd
+/// values are replaced after them, in [b, e) of its plane, counted (the channel's own plane;
+/// a copy of it in a second output is not counted again).
+struct Deferred {
+    float* plane;
+    float fill, lowest;
+    std::atomic<size_t>* replaced;  // null: a copy
+    bool afterDerived;              // a derived output reads it: after those, in a pass
+    void replace(size_t b, size_t e) const {
+        const size_t n = replaceAbsurd(plane + b, e - b, fill, lowest);
+        if (n && replaced) *replaced += n;
+    }
+};
 
-/// Replaces NaN, infinite and absurd (|v| > kAbsurd) values of a plane by `fill`; how many.
-size_t replaceAbsurd(FrameContext& ctx, float* plane, int W, int H, float fill) {
-    std::atomic<size_t> count{0};
-    ctx.parallelRows(H, [&](int y0, int y1) {
-        size_t n = 0;
-        for (float* v = plane + size_t(y0) * size_t(W); v < plane + size_t(y1) * size_t(W); ++v)
-            if (!(std::fabs(*v) <= kAbsurd)) *v = fill, ++n;
-        if (n) count += n;
-    });
-    return count.load();
+/// The channels that sums, the rest (Recipe::Rest; fastRest: from the colour, diffuse and
+/// emission planes) and derived outputs read.
+std::set<ChannelRef> channelsReadRaw(const std::vector<const Recipe*>& composite,
+                                     const std::vector<const Recipe*>& derived,
+                                     const Recipe* fastRest, const Plan& plan) {
+    std::set<ChannelRef> raw;
+    for (const auto* list : {&composite, &derived})
+        for (const Recipe* r : *list)
+            for (const auto& c : r->channels()) raw.insert(c);
+    if (fastRest)
+        for (const char* o : {"color", "diffuse", "emission"})
+            if (const Recipe* x = plan.find(o); x && !x->absent && x->isDirect())
+                for (const auto& c : x->terms[0][0]) raw.insert(c);
+    return raw;
 }
 
 }  // namespace
 
-void ExrLoader::replaceAbsurdValues(FrameContext& ctx, PassIO& io,
-                                    const std::vector<const Recipe*>& active, int W, int H) {
-    std::string counts;
+/// The values the policy replaced this frame per output channel ("color.R"), in plan order:
+/// decoded channels counted by the decoder (a channel copied to a second output counts there
+/// too), sums by their blocks; outputs computed from depth are checked here.
+static std::vector<std::pair<std::string, size_t>> replacedByOutput(
+    FrameContext& ctx, PassIO& io, const std::vector<const Recipe*>& active,
+    const std::vector<const Recipe*>& composite,
+    const std::vector<std::array<std::atomic<size_t>, 4>>& compositeReplaced,
+    const std::map<ChannelRef, std::atomic<size_t>>& decoded, int W, int H) {
+    std::vector<std::pair<std::string, size_t>> counts;
     for (const Recipe* r : active) {
+        if (r->reflectionOf) continue;  // 0 or 1 only
         const ImageView& out = io.output(r->output);
-        for (int c = 0; c < std::max(1, out.channels()); ++c)
-            if (const size_t n = replaceAbsurd(ctx, asFloats(out, c), W, H, r->fill))
-                counts += fmt::format("{}{} in {}.{}", counts.empty() ? "" : ", ", n, r->output,
-                                      "RGBA"[std::min(c, 3)]);
+        std::array<size_t, 4> n{};
+        if (r->fromDepth) {
+            n = replaceAbsurdInPlanes(ctx, out, W, H, r->fill);
+        } else if (r->isDirect()) {
+            for (size_t c = 0; c < r->terms[0][0].size() && c < 4; ++c)
+                n[c] = decoded.at(r->terms[0][0][c]).load();
+        } else {
+            const size_t k =
+                size_t(std::find(composite.begin(), composite.end(), r) - composite.begin());
+            for (size_t c = 0; c < 4; ++c) n[c] = compositeReplaced[k][c].load();
+        }
+        for (int c = 0; c < std::min(4, std::max(1, out.channels())); ++c)
+            counts.emplace_back(r->output + "." + "RGBA"[c], n[size_t(c)]);
     }
-    // One line per frame: a whole damaged sequence says so on every frame it damages.
-    if (!counts.empty())
-        spdlog::warn(
-            "frame {}: {}: NaN, infinite or absurd (|v| > 1e30) input values replaced by the "
-            "output's fill value, as for a missing channel (docs/layouts.md): {}",
-            frame_, open_.empty() ? path_ : open_.front().second->path(), counts);
+    return counts;
 }
 
 void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
@@ -1095,7 +1182,44 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
         fills[mask] = isMask ? float(kBackgroundId) : 0.f;
     }
 
-    // Decode, file by file.
+    // Specular's rest from the colour, diffuse and emission planes when this frame computes
+    // them (they come first in the plan; svgf.json binds all three): three reads per pixel
+    // instead of every split term again, and the emission tightened in place.
+    const Recipe* fastRest = nullptr;
+    const Recipe* spec = plan_.find("specular");
+    const bool emissionBound = io.hasOutput("emission") && !plan_.find("emission")->absent;
+    if (spec->rest && spec->rest->part == Recipe::Rest::Part::Positive &&
+        io.hasOutput("specular") && io.hasOutput("color") && io.hasOutput("diffuse") &&
+        !plan_.find("color")->absent && !plan_.find("diffuse")->absent)
+        fastRest = spec;
+
+    // Decode, file by file. A channel decoded straight into its output has its absurd values
+    // replaced as it is decoded (Absurd.h), unless a sum, the rest or a derived output reads
+    // it: those read it raw (a non-finite pass adds no light to the rest) and it is replaced
+    // after them (Deferred). Scratch channels stay raw.
+    std::map<ChannelRef, float> direct;  // -> the lowest valid value (its output's)
+    for (const Recipe* r : active)
+        if (r->isDirect() && !r->fromDepth && !r->reflectionOf)
+            for (const auto& c : r->terms[0][0]) direct.emplace(c, lowestValid(r->output));
+    std::map<ChannelRef, std::atomic<size_t>> replaced;
+    for (const auto& [ref, lowest] : direct)
+        replaced[ref];  // no insertion while decoding threads add
+    const std::set<ChannelRef> readRaw = channelsReadRaw(composite, derived, fastRest, plan_);
+    std::set<ChannelRef> readByDerived;
+    for (const Recipe* r : derived)
+        for (const auto& c : r->channels()) readByDerived.insert(c);
+    std::map<ChannelRef, float> decodeFix;  // direct channels replaced as decoded
+    std::vector<Deferred> deferred;
+    for (const auto& [ref, lowest] : direct) {
+        if (!readRaw.count(ref)) {
+            decodeFix.emplace(ref, lowest);
+            continue;
+        }
+        const bool late = readByDerived.count(ref) > 0;
+        deferred.push_back({dest[ref], fills[ref], lowest, &replaced[ref], late});
+        for (const auto& [plane, r] : copies)
+            if (r == ref) deferred.push_back({plane, fills[ref], lowest, nullptr, late});
+    }
     channelsRead_.clear();
     std::map<std::string, std::vector<std::pair<std::string, float*>>> byFile;
     for (const auto& [ref, plane] : dest) {
@@ -1111,6 +1235,8 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
         fileBytes += size_t(fs::file_size(in.path(), ec));
         if (adopted) {
             for (const auto& [name, plane] : chans) {
+                if (decodeFix.count({role, name}))
+                    replaced[{role, name}] = ready_->replaced[{role, name}].load();
                 const float* src = ready_->planes[{role, name}].get();
                 float* dst = plane;
                 ctx.parallelRows(H, [&](int y0, int y1) {
@@ -1121,13 +1247,21 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
             continue;
         }
         std::vector<float> fillv;
-        for (const auto& [name, plane] : chans) fillv.push_back(fills[{role, name}]);
+        std::vector<AbsurdFix> fixes;
+        for (const auto& [name, plane] : chans) {
+            const ChannelRef ref{role, name};
+            fillv.push_back(fills[ref]);
+            const auto d = decodeFix.find(ref);
+            fixes.push_back({d != decodeFix.end(), fills[ref],
+                             d != decodeFix.end() ? &replaced[ref] : nullptr,
+                             d != decodeFix.end() ? d->second : -kAbsurd});
+        }
         try {
             // The chunk buffers in planes the graph's memory plan leaves idle while the loader
             // runs, rather than in memory of their own on top of the plan's (docs/benchmarks.md).
             const Workspace lent{io.idlePlanes(), ctx.extent.pixels() * sizeof(float)};
             readChannels(in, display_, W, N, chans, fillv,
-                         ctx.parallel ? ctx.parallel->threadCount() : 1, lent);
+                         ctx.parallel ? ctx.parallel->threadCount() : 1, lent, fixes);
         } catch (const std::exception& e) {
             throw FrameError("frame " + std::to_string(frame_) + ": " + in.path() +
                              ": cannot read pixels (corrupt or truncated): " + e.what());
@@ -1139,22 +1273,16 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
     }
     for (const auto& [dst, ref] : copies) std::copy(dest[ref], dest[ref] + N, dst);
 
-    // Specular's rest from the colour, diffuse and emission planes when this frame computes
-    // them (they come first in the plan; svgf.json binds all three): three reads per pixel
-    // instead of every split term again, and the emission tightened in place.
-    const Recipe* fastRest = nullptr;
-    const Recipe* spec = plan_.find("specular");
-    const bool emissionBound = io.hasOutput("emission") && !plan_.find("emission")->absent;
-    if (spec->rest && spec->rest->part == Recipe::Rest::Part::Positive &&
-        io.hasOutput("specular") && io.hasOutput("color") && io.hasOutput("diffuse") &&
-        !plan_.find("color")->absent && !plan_.find("diffuse")->absent)
-        fastRest = spec;
-    // Sums of products (Blender light passes times their colour passes), block by block.
+    // Sums of products (Blender light passes times their colour passes), block by block; then
+    // the block's absurd values replaced, in the sums and the channels they read (Deferred),
+    // while it is in cache.
+    std::vector<std::array<std::atomic<size_t>, 4>> compositeReplaced(composite.size());
     ctx.parallelRows(H, [&](int y0, int y1) {
         const size_t end = size_t(y1) * size_t(W);
         for (size_t b = size_t(y0) * size_t(W); b < end; b += kCompositeBlock) {
             const size_t e = std::min(end, b + kCompositeBlock);
-            for (const Recipe* r : composite) {
+            for (size_t k = 0; k < composite.size(); ++k) {
+                const Recipe* r = composite[k];
                 const ImageView& out = io.output(r->output);
                 const int C = r->format == Format::Int32 ? 1 : channelCount(r->format);
                 for (int c = 0; c < C; ++c) {
@@ -1173,6 +1301,16 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
                                 e);
                 }
             }
+            for (size_t k = 0; k < composite.size(); ++k) {
+                const Recipe* r = composite[k];
+                const int C = r->format == Format::Int32 ? 1 : channelCount(r->format);
+                for (int c = 0; c < C; ++c)
+                    if (const size_t n = replaceAbsurd(asFloats(io.output(r->output), c) + b, e - b,
+                                                       r->fill, lowestValid(r->output)))
+                        compositeReplaced[k][size_t(c)] += n;
+            }
+            for (const Deferred& d : deferred)
+                if (!d.afterDerived) d.replace(b, e);
         }
     });
     // Positions unprojected from raw depth (before depth's own background convention).
@@ -1187,10 +1325,16 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
 
     for (const Recipe* r : active)
         if (r->reflectionOf) reflectionMask(ctx, *r->reflectionOf, dest, io.output(r->output), N);
+    // The depth a derived output was computed from: a pass of its own (renders without a
+    // position or normal pass only).
+    for (const Deferred& d : deferred)
+        if (d.afterDerived)
+            ctx.parallelRows(H, [&](int y0, int y1) {
+                d.replace(size_t(y0) * size_t(W), size_t(y1) * size_t(W));
+            });
 
-    // After the sums (a non-finite Blender pass adds no light to the rest: addRest) and before
-    // the conventions (ids still floats): nothing non-finite or absurd leaves the loader.
-    replaceAbsurdValues(ctx, io, active, W, H);
+    // Before the conventions (ids still floats): nothing non-finite or absurd leaves the loader.
+    warnReplaced(replacedByOutput(ctx, io, active, composite, compositeReplaced, replaced, W, H));
 
     // Convention fixes, in place: scales (motion y), background depth, then ids to int32.
     for (const Recipe* r : active) {
@@ -1234,7 +1378,7 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
         spdlog::debug("ExrLoader: channels read: {}", list);
         logged_ = true;
     }
-    if (prefetch_) startPrefetch(frame_ + step_, fills);
+    if (prefetch_) startPrefetch(frame_ + step_, fills, decodeFix);
 }
 
 }  // namespace kestrel::exr

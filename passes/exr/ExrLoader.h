@@ -8,6 +8,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -44,10 +45,13 @@ private:
     void ensurePlan(int64_t frame, std::vector<std::string>* notes);
     std::string filePath(const std::string& role, int64_t frame) const;
     ExrInput& openRole(const std::string& role, int64_t frame);
-    /// NaN, infinite and absurd values of this frame's outputs replaced by each output's fill
-    /// value (docs/layouts.md), with one warning per frame counting them by channel.
-    void replaceAbsurdValues(FrameContext& ctx, PassIO& io,
-                             const std::vector<const Recipe*>& active, int W, int H);
+    /// Throws FrameError naming the file and frame when this frame's size is not the first
+    /// frame's: history of one size cannot filter a frame of another.
+    void checkFrameSize(const ExrInput& in) const;
+    void rememberFirstFrame(int64_t frame, const ExrInput& in);
+    /// The one warning of a frame whose NaN, infinite and absurd values were replaced by each
+    /// output's fill value (Absurd.h, docs/errors.md): counts by output channel ("color.R").
+    void warnReplaced(const std::vector<std::pair<std::string, size_t>>& replaced) const;
     void fillScene(int64_t frame, SceneData& scene);
     /// Throws Error naming camera.json and the first input frame in the run it lists no entry for.
     void checkCameraFrames(int64_t firstFrame) const;
@@ -83,9 +87,13 @@ private:
         int64_t frame = 0;
         std::vector<std::pair<std::string, std::unique_ptr<ExrInput>>> open;
         std::map<ChannelRef, PlaneStorage> planes;
+        std::map<ChannelRef, std::atomic<size_t>> replaced;  // absurd values, per channel
         bool ok = false;  // false: any failure; the frame is then read as without prefetch
     };
-    void startPrefetch(int64_t frame, const std::map<ChannelRef, float>& fills);
+    /// `direct`: the channels decoded straight into an output, whose absurd values the
+    /// decoder replaces (Absurd.h), each with its output's lowest valid value.
+    void startPrefetch(int64_t frame, const std::map<ChannelRef, float>& fills,
+                       const std::map<ChannelRef, float>& direct);
     void joinPrefetch();
 
     // parameters
@@ -103,6 +111,12 @@ private:
     bool games202Matrices_ = false;
     bool colorHalf_ = false;  // every channel of the colour is stored as half
     bool depthHalf_ = false;  // the depth channel is stored as half
+    struct FirstFrame {
+        int64_t frame = 0;
+        std::string path;
+        int64_t width = 0, height = 0;
+    };
+    FirstFrame firstFrame_;  // the probed first frame: every frame must have its size
 
     // this frame's open files (headers read in beginFrame / on first use)
     int64_t frame_ = 0;

@@ -365,6 +365,17 @@ bool ExrWriter::frameWritten(int64_t frame, const std::string& provenance) const
     return false;
 }
 
+std::string ExrWriter::recordedProvenance(int64_t frame) const {
+    try {
+        // ExrInput: the header read safely (attribute sizes checked against the file's).
+        const ExrInput in(path_.expand(frame), int64_t(1) << 40);
+        const auto* p = in.header().findTypedAttribute<Imf::StringAttribute>("kestrel.provenance");
+        return p ? p->value() : std::string();
+    } catch (const std::exception&) {
+        return {};
+    }
+}
+
 namespace {
 /// RGB colour and the alpha input as one RGBA view (no copy); the colour alone otherwise.
 ImageView withAlpha(const ImageView& color, const PassIO& io) {

@@ -24,6 +24,7 @@ public:
     void beginRun(const RunContext& rc) override;
     void execute(FrameContext& ctx, PassIO& io) override;
     bool frameWritten(int64_t frame, const std::string& provenance) const override;
+    std::string recordedProvenance(int64_t frame) const override;
 
 private:
     /// `lent`: the writer's idle planes (PassIO::idlePlanes), for the ZIP encoder's chunk buffers.

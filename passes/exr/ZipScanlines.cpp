@@ -236,8 +236,9 @@ std::unique_ptr<ZipScanlines> ZipScanlines::plan(const std::string& path, const 
     return z;
 }
 
-bool ZipScanlines::decodeChunk(int fd, int chunk, const std::vector<float*>& dst, const Box& dp,
-                               int W, ChunkBuffers& buf, bool* stored, std::string* why) const {
+bool ZipScanlines::decodeChunk(int fd, int chunk, const std::vector<float*>& dst,
+                               const std::vector<AbsurdFix>& fix, const Box& dp, int W,
+                               ChunkBuffers& buf, bool* stored, std::string* why) const {
     auto where = [chunk] { return "chunk " + std::to_string(chunk); };  // on failure only
     const uint64_t off = offsets_[size_t(chunk)];
     unsigned char head[8];
@@ -288,6 +289,10 @@ bool ZipScanlines::decodeChunk(int fd, int chunk, const std::vector<float*>& dst
                     uint64_t(ix0 - int64_t(data_.x0)) * uint64_t(valueBytes(ch.type));
                 float* row = dst[c] + size_t(yy - dp.y0) * size_t(W) + size_t(ix0 - int64_t(dp.x0));
                 convert(src, j, ch.type, count, row);
+                // While the row is in cache: no second pass over the plane (issue 40).
+                if (fix[c].on)
+                    if (const size_t n = replaceAbsurd(row, count, fix[c].fill, fix[c].lowest))
+                        *fix[c].replaced += n;
             }
         }
     };
@@ -312,13 +317,16 @@ bool ZipScanlines::decodeChunk(int fd, int chunk, const std::vector<float*>& dst
 bool ZipScanlines::decode(const Box& dp, int W,
                           const std::vector<std::pair<std::string, float*>>& chans,
                           const std::vector<float>& fill, int threads, std::string* why,
-                          Stats* stats, const Workspace& lent) const {
+                          Stats* stats, const Workspace& lent,
+                          const std::vector<AbsurdFix>& fixes) const {
     std::vector<float*> dst(channels_.size(), nullptr);
+    std::vector<AbsurdFix> fix(channels_.size());  // by file channel, as dst
     for (size_t k = 0; k < chans.size(); ++k) {
         auto it = std::find_if(channels_.begin(), channels_.end(),
                                [&](const Channel& c) { return c.name == chans[k].first; });
         if (it != channels_.end()) {
             dst[size_t(it - channels_.begin())] = chans[k].second;
+            if (!fixes.empty()) fix[size_t(it - channels_.begin())] = fixes[k];
         } else {  // as OpenEXR fills a slice the file lacks
             std::fill(chans[k].second, chans[k].second + size_t(W) * size_t(dp.height()), fill[k]);
         }
@@ -360,7 +368,7 @@ bool ZipScanlines::decode(const Box& dp, int W,
             std::string mine;
             for (int c; !failed && (c = next++) <= last;) {
                 bool raw = false;
-                if (!decodeChunk(fd, c, dst, dp, W, buf, &raw, &mine)) {
+                if (!decodeChunk(fd, c, dst, fix, dp, W, buf, &raw, &mine)) {
                     fail(mine);
                     break;
                 }

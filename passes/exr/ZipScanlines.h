@@ -17,6 +17,7 @@
 #include <utility>
 #include <vector>
 
+#include "Absurd.h"
 #include "Box.h"
 #include "Workspace.h"
 
@@ -40,10 +41,12 @@ public:
         int stored = 0;  ///< of which stored uncompressed (deflate did not shrink them)
     };
     /// `lent`: a decoding thread takes two regions (packed and inflated chunk) where each holds
-    /// a chunk, else maps its own buffers.
+    /// a chunk, else maps its own buffers. `fixes` (empty, or one per entry of `chans`): the
+    /// absurd values of a channel replaced as each row is decoded (Absurd.h).
     bool decode(const Box& dp, int W, const std::vector<std::pair<std::string, float*>>& chans,
                 const std::vector<float>& fill, int threads, std::string* why,
-                Stats* stats = nullptr, const Workspace& lent = {}) const;
+                Stats* stats = nullptr, const Workspace& lent = {},
+                const std::vector<AbsurdFix>& fixes = {}) const;
 
     struct Channel {
         std::string name;
@@ -52,7 +55,8 @@ public:
     };
 
 private:
-    bool decodeChunk(int fd, int chunk, const std::vector<float*>& dst, const Box& dp, int W,
+    bool decodeChunk(int fd, int chunk, const std::vector<float*>& dst,
+                     const std::vector<AbsurdFix>& fix, const Box& dp, int W,
                      struct ChunkBuffers& buf, bool* stored, std::string* why) const;
 
     std::string path_;

@@ -21,9 +21,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-enum class FrameState { Complete, Missing, Broken };
+enum class FrameState { Complete, Missing, Broken, Foreign };
 
-/// One writer of the plan's graph: its frame pattern and the pass that judges its files.
 struct Writer {
     std::string name;
     FramePattern path;
@@ -44,8 +43,52 @@ std::vector<Writer> planWriters(const FarmPlan& plan, const CompiledGraph& g) {
     return writers;
 }
 
-/// The state of one frame over every writer; `file` names the first file that is not complete.
-FrameState frameState(const std::vector<Writer>& writers, int64_t frame, std::string& file) {
+/// A parameter value as the provenance JSON spells it, short.
+std::string shortValue(const nlohmann::json& v) {
+    std::string s = v.dump();
+    return s.size() > 40 ? s.substr(0, 37) + "..." : s;
+}
+
+/// What differs between the provenance an output records and the plan's: the graph, else the
+/// passes and parameters (the first three), so that the user knows which run made it.
+std::string provenanceDifference(const std::string& recorded, const std::string& planned) {
+    if (recorded.empty()) return "it records no kestrel.provenance (another writer's file?)";
+    const auto r = nlohmann::json::parse(recorded, nullptr, false);
+    const auto p = nlohmann::json::parse(planned, nullptr, false);
+    if (!r.is_object() || !r.contains("passes") || !r["passes"].is_array())
+        return "its kestrel.provenance is not Kestrel's JSON";
+    if (r.value("graph", "") != p.value("graph", ""))
+        return "graph '" + r.value("graph", "") + "' (the plan's: '" + p.value("graph", "") + "')";
+    std::map<std::string, nlohmann::json> rp, pp;  // pass name -> params
+    for (const auto& n : r["passes"]) rp[n.value("name", "")] = n.value("params", nlohmann::json());
+    for (const auto& n : p["passes"]) pp[n.value("name", "")] = n.value("params", nlohmann::json());
+    std::vector<std::string> diffs, paths;  // file patterns last: the parameters say more
+    for (const auto& [name, params] : pp) {
+        if (!rp.count(name)) {
+            diffs.push_back("no pass " + name);
+            continue;
+        }
+        for (const auto& [k, v] : params.items())
+            if (!rp[name].contains(k) || rp[name][k] != v)
+                (k == "path" ? paths : diffs)
+                    .push_back(name + "." + k + " " +
+                               (rp[name].contains(k) ? shortValue(rp[name][k]) : "unset") +
+                               " (the plan's: " + shortValue(v) + ")");
+    }
+    diffs.insert(diffs.end(), paths.begin(), paths.end());
+    for (const auto& [name, params] : rp)
+        if (!pp.count(name)) diffs.push_back("pass " + name + " the plan's graph has not");
+    if (diffs.empty()) return "its passes are in another order";
+    std::string s;
+    for (size_t i = 0; i < std::min<size_t>(3, diffs.size()); ++i) s += (i ? ", " : "") + diffs[i];
+    if (diffs.size() > 3) s += fmt::format(" and {} more", diffs.size() - 3);
+    return s;
+}
+
+/// The state of one frame over every writer; `file` names the first file that is not
+/// complete, `why` says what made a foreign one.
+FrameState frameState(const std::vector<Writer>& writers, int64_t frame,
+                      const std::string& provenance, std::string& file, std::string& why) {
     for (const auto& w : writers) {
         file = w.path.expand(frame);
         std::error_code ec;
@@ -56,8 +99,27 @@ FrameState frameState(const std::vector<Writer>& writers, int64_t frame, std::st
         const bool complete = w.pass->frameWritten(frame, "");
         spdlog::set_level(level);
         if (!complete) return FrameState::Broken;
+        // --resume would run it again too: a frame of another graph or other parameters is not
+        // this plan's output, however intact.
+        const std::string recorded = w.pass->recordedProvenance(frame);
+        if (recorded != provenance) {
+            why = provenanceDifference(recorded, provenance);
+            return FrameState::Foreign;
+        }
     }
     return FrameState::Complete;
+}
+
+/// "missing", "broken " or "foreign": the frame lines' first word (aligned).
+const char* stateWord(FrameState s) {
+    switch (s) {
+        case FrameState::Missing:
+            return "missing";
+        case FrameState::Broken:
+            return "broken ";
+        default:
+            return "foreign";
+    }
 }
 
 std::string taskLine(const FarmTask& t, bool rerun, const TaskLog& log) {
@@ -125,23 +187,30 @@ int checkPlan(const FarmPlan& plan) {
         for (int64_t f = plan.first; f <= plan.last; ++f) files.push_back(w.path.expand(f));
     removeStaleTemporaries(files, std::chrono::seconds(60));
 
+    const std::string provenance = compiled->provenanceJson();
     std::set<int> rerun;
-    int missing = 0, broken = 0;
+    std::map<FrameState, int> count;
     for (int64_t f = plan.first; f <= plan.last; ++f) {
-        std::string file;
-        const FrameState s = frameState(writers, f, file);
+        std::string file, why;
+        const FrameState s = frameState(writers, f, provenance, file, why);
         if (s == FrameState::Complete) continue;
         const FarmTask* t = plan.taskOf(f);
         if (t) rerun.insert(t->index);
-        (s == FrameState::Missing ? missing : broken)++;
-        std::cout << (s == FrameState::Missing ? "missing" : "broken ") << " frame " << f << ": "
-                  << file << (s == FrameState::Broken ? " (incomplete or unreadable EXR)" : "")
+        ++count[s];
+        std::cout << stateWord(s) << " frame " << f << ": " << file
+                  << (s == FrameState::Broken ? " (incomplete or unreadable EXR)" : "")
+                  << (s == FrameState::Foreign
+                          ? " (written by another graph or other parameters: " + why + ")"
+                          : "")
                   << (t ? " (task " + std::to_string(t->index) + ")" : "") << "\n";
     }
     const int64_t total = plan.last - plan.first + 1;
+    const int missing = count[FrameState::Missing], broken = count[FrameState::Broken],
+              foreign = count[FrameState::Foreign];
     std::cout << fmt::format(
-        "farm check: frames {}-{} in {} tasks: {} complete, {} missing, {} broken\n", plan.first,
-        plan.last, plan.tasks.size(), total - missing - broken, missing, broken);
+        "farm check: frames {}-{} in {} tasks: {} complete, {} missing, {} broken, {} foreign\n",
+        plan.first, plan.last, plan.tasks.size(), total - missing - broken - foreign, missing,
+        broken, foreign);
     for (const auto& t : plan.tasks)
         std::cout << taskLine(t, rerun.count(t.index) > 0, readTaskLog(t.log)) << "\n";
     if (rerun.empty()) return 0;

@@ -1,7 +1,9 @@
 #pragma once
 // `kestrel farm check`: are all frames of a farm plan written and complete? Uses the writer's own
 // completeness rule (ExrWriter::frameWritten: magic, a header OpenEXR parses, every chunk present,
-// the data matching the writer's checksum; a truncated or corrupted file is broken) and reads each task's wall time and outcome from its log.
+// the data matching the writer's checksum; a truncated or corrupted file is broken), checks each
+// output's provenance against the plan's graph and parameters (a foreign frame names what
+// differs), and reads each task's wall time and outcome from its log.
 #include <string>
 
 #include "FarmPlan.h"

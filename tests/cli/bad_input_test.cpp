@@ -183,21 +183,27 @@ TEST_F(CliBadInput, ResumeRewritesAFrameCutInsideItsLastChunk) {
 
 // --- inputs that change or are still being written ---------------------------------------
 
-TEST_F(CliBadInput, InputChangingSizeMidSequenceIsAWarning) {
+TEST_F(CliBadInput, InputChangingSizeMidSequenceIsAFrameError) {
+    // Frame 2 re-rendered at another size: no history of the others can filter it.
     ASSERT_TRUE(makeScene(box, box.root() / "other", 40, 30, 2));
     fs::copy_file(box.root() / "other" / "noisy" / "frame_0002.exr", noisy() / "frame_0002.exr",
                   fs::copy_options::overwrite_existing);
     before = checksums(box.work() / "scene");
     auto r = run({"--frames", "1-3", "--output", "out/c.####.exr"});
-    EXPECT_EQ(r.code, 0) << r.all();
-    EXPECT_TRUE(r.errorLines().empty()) << r.all();
-    EXPECT_NE(r.err.find("warning: frame 2: resolution changed from 32x24 to 40x30"),
-              std::string::npos)
-        << r.all();
+    EXPECT_EQ(r.code, 1) << r.all();
+    expectOneError(r, {"frame 2", "frame_0002.exr", "40x30", "frame_0001.exr", "32x24"});
+    EXPECT_TRUE(fs::exists(box.work() / "out" / "c.0001.exr"));
+    EXPECT_FALSE(fs::exists(box.work() / "out" / "c.0002.exr"));
     EXPECT_FALSE(looksLikeCrash(r.all())) << r.all();
+    // With --skip-bad-frames it is skipped (history reset) and frame 3 has the sequence's size.
+    auto skipped = run({"--frames", "1-3", "--output", "skip/c.####.exr", "--skip-bad-frames"});
+    EXPECT_EQ(skipped.code, 0) << skipped.all();
+    EXPECT_NE(skipped.err.find("skipped: frame 2"), std::string::npos) << skipped.all();
+    EXPECT_EQ(skipped.err.find("resolution changed"), std::string::npos) << skipped.all();
+    EXPECT_FALSE(fs::exists(box.work() / "skip" / "c.0002.exr"));
     RgbImage img;
-    ASSERT_TRUE(readRgb((box.work() / "out" / "c.0002.exr").string(), img));
-    EXPECT_EQ(img.width, 40);
+    ASSERT_TRUE(readRgb((box.work() / "skip" / "c.0003.exr").string(), img));
+    EXPECT_EQ(img.width, 32);
     expectInputsUntouched();
 }
 

@@ -6,6 +6,7 @@
 #include <regex>
 #include <set>
 #include <thread>
+#include <tuple>
 
 #include "CliRunner.h"
 
@@ -178,6 +179,41 @@ TEST_F(Farm, CheckNamesMissingAndBrokenFramesAndTheTasksToRerun) {
     CliResult flipped = box.run(checkArgs);
     EXPECT_EQ(flipped.code, 1) << flipped.all();
     EXPECT_NE(flipped.out.find("broken  frame 5: "), std::string::npos) << flipped.out;
+}
+
+TEST_F(Farm, CheckNamesFramesOfAnotherGraphOrOtherParameters) {
+    if (!makeZooScene("room", 6)) GTEST_SKIP() << "no scenegen in this build";
+    ASSERT_EQ(planAndRun(planArgs("plan", "out", "1-6", 3)).code, 0);
+    const auto checkArgs = planArgs("check", "out", "1-6", 3);
+    ASSERT_EQ(box.run(checkArgs).code, 0);
+    // Frame 2 from a run with another parameter, frame 5 from another graph: intact EXRs that
+    // are not the plan's output (what --resume runs again).
+    const std::string graphs = (fs::path(KESTREL_SOURCE_DIR) / "graphs").string();
+    const std::string in = (box.work() / "scene" / "noisy" / "frame_####.exr").string();
+    const std::string out = (box.work() / "out" / "frame_####.exr").string();
+    for (const auto& [graph, extra, frame] :
+         {std::tuple{"svgf.json", std::vector<std::string>{"--set", "single.sigmaL=6"}, "2"},
+          std::tuple{"svgf-fast.json", std::vector<std::string>{}, "5"}}) {
+        std::vector<std::string> args = {"run", graphs + "/" + graph, "--input", in, "--output",
+                                         out,   "--frames",           frame};
+        args.insert(args.end(), extra.begin(), extra.end());
+        CliResult r = box.run(args);
+        ASSERT_EQ(r.code, 0) << r.all();
+    }
+    CliResult r = box.run(checkArgs);
+    EXPECT_EQ(r.code, 1) << r.all();
+    EXPECT_TRUE(std::regex_search(
+        r.out, std::regex("foreign frame 2: \\S+/out/frame_0002.exr \\(written by another graph "
+                          "or other parameters: single.atrous0.sigmaL 6.0 \\(the plan's: 4.0\\), "
+                          "single.atrous1.sigmaL 6.0 \\(the plan's: 4.0\\)\\) \\(task 0\\)")))
+        << r.out;
+    EXPECT_TRUE(std::regex_search(
+        r.out, std::regex("foreign frame 5: \\S+/out/frame_0005.exr \\(written by another graph "
+                          "or other parameters: graph '\\S+' \\(the plan's: 'svgf'\\)\\) "
+                          "\\(task 1\\)")))
+        << r.out;
+    EXPECT_NE(r.out.find("4 complete, 0 missing, 0 broken, 2 foreign"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("re-run tasks 0,1 "), std::string::npos) << r.out;
 }
 
 TEST_F(Farm, CheckWithoutAPlanIsAUsageError) {

@@ -103,8 +103,7 @@ TEST_F(CliNothingLost, DuplicateKeyIsRefusedWithItsJsonPath) {
         SCOPED_TRACE(args[0]);
         auto r = box.run(args);
         EXPECT_EQ(r.code, 2) << r.all();
-        expectOneError(r,
-                           {"dup.json", "duplicate key 'exposure'", "passes[1].params.exposure"});
+        expectOneError(r, {"dup.json", "duplicate key 'exposure'", "passes[1].params.exposure"});
     }
     EXPECT_FALSE(fs::exists(work() / "out"));
 }
@@ -319,6 +318,27 @@ TEST_F(CliNothingLost, AbsurdInputValuesAreReplacedCountedAndNeverReachHistory) 
             << "frame " << f;
 }
 
+TEST_F(CliNothingLost, NegativeLightAndAlbedoAreReplacedEvenWithoutHistory) {
+    // Issue 40, item 4: -1e10 colour on frame 1, where no history bounds it (it left -1e7 in
+    // frame 12), and a negative albedo on frame 3 (a reflectance is never negative); svgf.json.
+    ASSERT_TRUE(makeScene(box, work() / "long", 32, 24, 12));
+    const fs::path noisy = work() / "long" / "noisy";
+    for (const char* c : {"R", "G", "B"}) damageBlock(noisy / "frame_0001.exr", c, -1e10f, 4, 4);
+    for (const char* c : {"albedo.R", "albedo.G", "albedo.B"})
+        damageBlock(noisy / "frame_0003.exr", c, -0.5f, 20, 10);
+    const float clean = largestMagnitude(noisy / "frame_0002.exr");
+    auto r = box.run({"run", (fs::path(KESTREL_SOURCE_DIR) / "graphs" / "svgf.json").string(),
+                      "--input", "long/noisy/frame_####.exr", "--output", "out/s.####.exr"});
+    EXPECT_EQ(r.code, 0) << r.all();
+    for (const char* needle :
+         {"warning: frame 1: long/noisy/frame_0001.exr: NaN, infinite", "100 in color.R",
+          "warning: frame 3: long/noisy/frame_0003.exr", "100 in albedo.R"})
+        EXPECT_NE(r.err.find(needle), std::string::npos) << needle << "\n" << r.all();
+    for (int f = 1; f <= 12; ++f)
+        EXPECT_LE(largestMagnitude(work() / "out" / frameName("s.", f, ".exr")), 4 * clean + 1)
+            << "frame " << f;
+}
+
 TEST_F(CliNothingLost, GapInTheSequenceIsACutAndSaid) {
     auto gen = box.run({"scenegen", "--out", "gap", "--width", "32", "--height", "24", "--frames",
                         "4", "--spp", "2"});
@@ -369,9 +389,9 @@ TEST_F(CliNothingLost, FarmPlanOfAGraphThatCannotRunIsRefused) {
              {"bad.json", "out/c.####.exr", {"passes[1].params.exposure", "got 500"}},
              {copy, "scene/noisy/frame_####.exr", {"is the input pattern", "--output"}}}) {
         SCOPED_TRACE(c.graph + " " + c.output);
-        auto r = box.run({"farm", "plan", c.graph, "--input", "scene/noisy/frame_####.exr",
-                          "--output", c.output, "--frames", "1-3", "--chunk", "2", "--out",
-                          "plan.sh"});
+        auto r =
+            box.run({"farm", "plan", c.graph, "--input", "scene/noisy/frame_####.exr", "--output",
+                     c.output, "--frames", "1-3", "--chunk", "2", "--out", "plan.sh"});
         EXPECT_EQ(r.code, 2) << r.all();
         expectOneError(r, {c.needles.front()});
         for (const auto& n : c.needles) EXPECT_NE(r.err.find(n), std::string::npos) << r.all();
@@ -415,8 +435,8 @@ TEST_F(CliNothingLost, BenchMistakesExitTwoWithTheReason) {
 TEST_F(CliNothingLost, FrameNumberInAFolderNameIsRefusedBeforeFrameOne) {
     for (const std::string out : {"out/####/c.exr", "out/shot_%04d/c.exr"}) {
         SCOPED_TRACE(out);
-        auto r = box.run(runArgs((graphDir() / "copy.json").string(),
-                                 {"--frames", "1-2", "--output", out}));
+        auto r = box.run(
+            runArgs((graphDir() / "copy.json").string(), {"--frames", "1-2", "--output", out}));
         EXPECT_EQ(r.code, 2) << r.all();
         expectOneError(r, {"'" + out + "'", "frame number in a folder name", "e.g. out/c."});
         EXPECT_FALSE(fs::exists(work() / "out")) << "written before the refusal";
@@ -435,8 +455,8 @@ TEST_F(CliNothingLost, OutputNameTooLongForItsTemporaryIsRefusedBeforeFrameOne) 
         auto r = box.run(runArgs((graphDir() / "copy.json").string(),
                                  {"--frames", "1-2", "--output", named(bytes)}));
         EXPECT_EQ(r.code, 2) << r.all();
-        expectOneError(r, {"(output.path, frame 1)", std::to_string(bytes) + " bytes",
-                               "NAME_MAX", "use at most " + std::to_string(nameMax - 16)});
+        expectOneError(r, {"(output.path, frame 1)", std::to_string(bytes) + " bytes", "NAME_MAX",
+                           "use at most " + std::to_string(nameMax - 16)});
         EXPECT_FALSE(fs::exists(work() / "out"));
     }
     auto ok = box.run(runArgs((graphDir() / "copy.json").string(),
@@ -458,8 +478,8 @@ TEST_F(CliNothingLost, ResumeWritesAgainAPreviewLostOrCutShort) {
     struct Case {
         std::string damage, png;
     };
-    for (const auto& c : std::vector<Case>{{"cut short", "p.0003.png"},
-                                           {"lost to a failed write", "p.0002.png"}}) {
+    for (const auto& c :
+         std::vector<Case>{{"cut short", "p.0003.png"}, {"lost to a failed write", "p.0002.png"}}) {
         SCOPED_TRACE(c.damage);
         const std::string before = readText(out / c.png);
         if (c.damage == "cut short")
@@ -577,14 +597,22 @@ TEST_F(CliNothingLost, OutOfMemoryNamesTheFrameAndTheFileThatDeclaredItsSize) {
     for (const char* f : {"frame_0001.exr", "frame_0002.exr"})
         fs::copy_file(work() / "scene" / "noisy" / f, work() / "forged" / f);
     forgeWindows(work() / "forged" / "frame_0002.exr", 3200, 3200);
-    auto r = box.runWithin(60,
-                           {"run", (graphDir() / "copy.json").string(), "--input",
-                            "forged/frame_####.exr", "--output", "out/c.####.exr", "--threads", "2"},
-                           150000);
+    const std::vector<std::string> args = {"run",       (graphDir() / "copy.json").string(),
+                                           "--input",   "forged/frame_####.exr",
+                                           "--output",  "out/c.####.exr",
+                                           "--threads", "2"};
+    // Mid-sequence: not the first frame's size, refused before anything is allocated.
+    auto r = box.runWithin(60, args, 150000);
     EXPECT_EQ(r.code, 1) << r.all();
-    expectOneError(r, {"frame 2: out of memory", "3200x3200 frame (the previous was 32x24)",
-                           "forged/frame_0002.exr declares"});
+    expectOneError(r, {"frame 2", "forged/frame_0002.exr", "3200x3200", "32x24"});
     EXPECT_TRUE(fs::exists(work() / "out" / "c.0001.exr")) << "frame 1 fits: it is written";
+    // As the first frame: its planes are allocated, and running out names the frame and file.
+    auto first = args;
+    first.insert(first.end(), {"--frames", "2"});
+    auto oom = box.runWithin(60, first, 150000);
+    EXPECT_EQ(oom.code, 1) << oom.all();
+    expectOneError(oom,
+                   {"frame 2: out of memory", "3200x3200 frame", "forged/frame_0002.exr declares"});
 }
 
 }  // namespace

@@ -216,6 +216,10 @@ public:
     virtual bool frameWritten(int64_t /*frameNumber*/, const std::string& /*provenance*/) const {
         return false;
     }
+    /// Sinks: the provenance (CompiledGraph::provenanceJson) this frame's existing output
+    /// records; empty when it records none or cannot be read. farm check says from it which
+    /// graph or parameters made an output that is not the plan's.
+    virtual std::string recordedProvenance(int64_t /*frameNumber*/) const { return {}; }
     /// Sinks: called at the end of a run (close files, print summaries).
     virtual void endRun() {}
 };

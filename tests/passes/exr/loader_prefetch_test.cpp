@@ -170,8 +170,10 @@ TEST(ExrLoaderPrefetch, DescribeDocumentsTheMemoryCost) {
 }
 
 TEST(ExrLoaderPrefetch, FrameSizeChangingMidSequenceMatchesUnprefetched) {
+    // Frames 2 and 4 are not the first frame's size: frame errors, with or without the frame
+    // read ahead, and the frames around them the same.
     TempDir tmp("prefetch_size");
-    const int sizes[][2] = {{32, 24}, {48, 40}, {48, 40}, {16, 16}, {48, 40}};
+    const int sizes[][2] = {{32, 24}, {48, 40}, {32, 24}, {16, 16}, {32, 24}};
     for (int f = 1; f <= 5; ++f) {
         char name[32];
         std::snprintf(name, sizeof name, "f.%04d.exr", f);
@@ -181,8 +183,13 @@ TEST(ExrLoaderPrefetch, FrameSizeChangingMidSequenceMatchesUnprefetched) {
     const std::string pattern = (tmp.path / "f.####.exr").string();
     Frames off = runFrames(pattern, 1, 5, false), on = runFrames(pattern, 1, 5, true);
     for (size_t i = 0; i < 5; ++i) {
-        EXPECT_EQ(on.errors[i], "");
-        EXPECT_EQ(on.planes[i].size(), size_t(sizes[i][0] * sizes[i][1] * 3));
+        const bool odd = i == 1 || i == 3;
+        EXPECT_EQ(on.errors[i], off.errors[i]) << "frame " << i + 1;
+        if (odd)
+            EXPECT_NE(on.errors[i].find("the first frame"), std::string::npos) << on.errors[i];
+        else
+            EXPECT_EQ(on.errors[i], "");
+        EXPECT_EQ(on.planes[i].size(), odd ? 0 : size_t(sizes[i][0] * sizes[i][1] * 3));
         EXPECT_TRUE(sameBits(off.planes[i], on.planes[i])) << "frame " << i + 1;
     }
 }
