@@ -1,0 +1,133 @@
+"""Runs from Python: the engine's SequenceRunner, progress callbacks, outputs as arrays that
+outlive the run, per-pass times, failures as exceptions, and the same frames as `kestrel run`."""
+import gc
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import kestrel
+from conftest import SVGF, cli, in_memory
+
+
+def compiled_svgf(scene, *sets):
+    g = kestrel.load_graph(SVGF, set=["input.path=" + scene["noisy"], *sets])
+    port = in_memory(g)
+    return g.compile(first_frame=1), port
+
+
+def test_run_reads_the_last_frame_as_an_array(scene):
+    c, port = compiled_svgf(scene)
+    run = kestrel.run(c, frames="1-4")
+    assert [f["frame"] for f in run.frames] == [1, 2, 3, 4]
+    assert all(f["written"] and f["ms"] > 0 for f in run.frames)
+    img = run.output(port)
+    assert img.shape == (27, 48, 3) and img.dtype == np.float32
+    assert np.isfinite(img).all() and img.mean() > 0
+    with pytest.raises(kestrel.Error, match="not marked|marked"):
+        run.output("diffuse.atrous0.color")
+
+
+def test_array_outlives_graph_and_run(scene):
+    c, port = compiled_svgf(scene)
+    run = kestrel.run(c, frames=[1, 2])
+    img = run.output(port)
+    kept = img.copy()
+    del run, c
+    gc.collect()
+    # The engine's memory is gone; the array owns its copy.
+    churn = kestrel.run(compiled_svgf(scene, "*.sigmaL=1")[0], frames=[1, 2])
+    del churn
+    gc.collect()
+    assert img.flags.owndata or img.base is not None
+    np.testing.assert_array_equal(img, kept)
+
+
+def test_progress_callback_sees_each_frame_and_its_outputs(scene):
+    c, port = compiled_svgf(scene)
+    seen, frames = [], []
+
+    def progress(frame):
+        seen.append((frame.frame, frame.index, frame.written, sorted(frame.pass_ms)))
+        frames.append((frame, frame.output(port)))
+
+    run = kestrel.run(c, frames="1-3", progress=progress)
+    assert [s[0] for s in seen] == [1, 2, 3] and [s[1] for s in seen] == [0, 1, 2]
+    assert seen[0][3] == sorted(c.execution_order)
+    # Each callback's copy is that frame's: the last equals the run's last frame.
+    np.testing.assert_array_equal(frames[-1][1], run.output(port))
+    assert not np.array_equal(frames[0][1], frames[-1][1])
+    # Outside its callback a frame's outputs are gone: an error, never a dangling view.
+    with pytest.raises(kestrel.Error, match="only inside the progress callback"):
+        frames[0][0].output(port)
+
+
+def test_callback_false_stops_and_exceptions_propagate(scene):
+    c, _ = compiled_svgf(scene)
+    run = kestrel.run(c, frames="1-4", progress=lambda f: False)
+    assert run.stopped and len(run.frames) == 1
+
+    def boom(frame):
+        raise ValueError(f"boom at {frame.frame}")
+
+    with pytest.raises(ValueError, match="boom at 1"):
+        kestrel.run(c, frames="1-4", progress=boom)
+    # The graph is still usable after a failed run.
+    assert len(kestrel.run(c, frames="1-2").frames) == 2
+
+
+def test_warmup_and_per_pass_times(scene):
+    c, _ = compiled_svgf(scene)
+    run = kestrel.run(c, frames="3-4", warmup=2)
+    assert [(f["frame"], f["written"]) for f in run.frames] == \
+        [(1, False), (2, False), (3, True), (4, True)]
+    times = run.pass_times
+    assert {t["frame"] for t in times} == {1, 2, 3, 4}
+    assert {t["pass"] for t in times} == set(c.execution_order)
+    assert all(t["ms"] >= 0 for t in times)
+
+
+def test_missing_frame_raises_frame_error_or_is_skipped(scene):
+    c, _ = compiled_svgf(scene)
+    with pytest.raises(kestrel.FrameError, match="frame_0009.exr"):
+        kestrel.run(c, frames=[1, 9])
+    run = kestrel.run(c, frames=[1, 9, 2], skip_bad_frames=True)
+    assert [f["frame"] for f in run.frames] == [1, 2]
+    assert run.skipped[0]["frame"] == 9 and "frame_0009.exr" in run.skipped[0]["error"]
+
+
+def test_same_frames_as_kestrel_run(scene, tmp_path):
+    out_py = str(tmp_path / "py" / "frame_####.exr")
+    out_cli = str(tmp_path / "cli" / "frame_####.exr")
+    g = kestrel.load_graph(SVGF, set=["input.path=" + scene["noisy"], "output.path=" + out_py])
+    kestrel.run(g.compile(first_frame=1), frames="1-4", threads=2)
+    rc, _, err = cli("run", SVGF, "--input", scene["noisy"], "--output", out_cli,
+                     "--frames", "1-4", "--threads", "2")
+    assert rc == 0, err
+    result = kestrel.compare(out_py, out_cli)
+    assert len(result["frames"]) == 4
+    assert all(f["relMse"] == 0 for f in result["frames"])
+
+
+def test_interpreter_lock_is_released_while_cpp_runs(scene):
+    c, _ = compiled_svgf(scene)
+    ticks, done = [], threading.Event()
+
+    def tick():
+        while not done.is_set():
+            ticks.append(time.perf_counter())
+            time.sleep(0.001)
+
+    t = threading.Thread(target=tick)
+    t.start()
+    time.sleep(0.01)
+    start = time.perf_counter()
+    kestrel.run(c, frames="1-4", warmup=0)
+    kestrel.run(c, frames="1-4")
+    end = time.perf_counter()
+    done.set()
+    t.join()
+    during = [x for x in ticks if start < x < end]
+    # With the lock held through the run the other thread could not tick at all.
+    assert len(during) >= 3, (len(during), end - start)
