@@ -142,9 +142,53 @@ py::list passTypes() {
     return rows;
 }
 
+/// Falcor's shape: a graph built in code, pass by pass and edge by edge.
+std::shared_ptr<GraphObject> emptyGraph(const std::string& name) {
+    auto g = std::make_shared<GraphObject>();
+    g->session = session();
+    g->desc.name = name;
+    return g;
+}
+
+void createPass(GraphObject& g, const std::string& name, const std::string& type,
+                const py::dict& params) {
+    for (const auto& p : g.desc.passes)
+        if (p.name == name) throw Error("create_pass: the graph has a pass '" + name + "' already");
+    PassNode n;
+    n.name = name;
+    n.type = type;
+    n.paramsJson = py::module_::import("json").attr("dumps")(params).cast<std::string>();
+    g.desc.passes.push_back(std::move(n));
+}
+
+void addEdge(GraphObject& g, const std::string& from, const std::string& to, bool history) {
+    EdgeDesc e;
+    e.history = history;
+    if (!splitPassPort(from, e.fromPass, e.fromPort) || !splitPassPort(to, e.toPass, e.toPort))
+        throw Error(std::string(history ? "add_history_edge" : "add_edge") + " " + from + " -> " +
+                    to + ": expected 'pass.port' on both sides");
+    g.desc.edges.push_back(std::move(e));
+}
+
 void bindGraphClass(py::module_& m) {
     py::class_<GraphObject, std::shared_ptr<GraphObject>>(m, "Graph",
                                                           "A parsed graph, groups expanded")
+        .def(py::init(&emptyGraph), py::arg("name") = "graph",
+             "An empty graph, to build in code (create_pass, add_edge, mark_output)")
+        .def("create_pass", &createPass, py::arg("name"), py::arg("type"),
+             py::arg("params") = py::dict(), "Adds a pass; checked by validate() and compile()")
+        .def(
+            "add_edge",
+            [](GraphObject& g, const std::string& from, const std::string& to) {
+                addEdge(g, from, to, false);
+            },
+            py::arg("src"), py::arg("dst"), "Connects 'pass.port' to 'pass.port'")
+        .def(
+            "add_history_edge",
+            [](GraphObject& g, const std::string& from, const std::string& to) {
+                addEdge(g, from, to, true);
+            },
+            py::arg("src"), py::arg("dst"), "Feeds last frame's 'pass.port' to 'pass.port'")
         .def_property_readonly("name", [](const GraphObject& g) { return g.desc.name; })
         .def_property_readonly("path",
                                [](const GraphObject& g) { return g.desc.sourcePath.string(); })

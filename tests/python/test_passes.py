@@ -192,3 +192,47 @@ def test_numpy_pass_inside_svgf(scene, tmp_path):
     g = kestrel.load_graph(str(graph), set=["input.path=" + scene["noisy"]])
     out = kestrel.run(g.compile(first_frame=1), frames="1-2").output("gain.color")
     np.testing.assert_allclose(out, plain * 0.5, rtol=1e-6)
+
+
+def test_graph_built_in_code_with_a_history_edge():
+    """Falcor's shape: create_pass, add_edge, add_history_edge, mark_output."""
+    feed, acc = unique("Feed"), unique("Accumulate")
+    src = kestrel.ArraySource(feed, {"color": "float3"})
+    for f in (1, 2, 3):
+        src.set_frame(f, {"color": np.full((2, 3, 3), float(f), np.float32)})
+
+    class Accumulate:
+        type = acc
+        inputs = {"color": "float3", "prev": {"format": "float3", "history": True}}
+        outputs = {"color": "float3"}
+
+        def __init__(self, params):
+            pass
+
+        def execute(self, frame, inputs, outputs):
+            prev = inputs.get("prev")
+            for c in range(3):
+                cur = inputs["color"][c]
+                outputs["color"][c][...] = cur if prev is None else 0.5 * (cur + prev[c])
+
+    kestrel.register_pass(Accumulate)
+    g = kestrel.Graph("built")
+    g.create_pass("in", feed)
+    g.create_pass("acc", acc)
+    g.add_edge("in.color", "acc.color")
+    g.add_history_edge("acc.color", "acc.prev")
+    g.mark_output("acc.color")
+    g.validate()
+    seen = []
+    kestrel.run(g.compile(first_frame=1),
+                progress=lambda fr: seen.append(float(fr.output("acc.color")[0, 0, 0])))
+    assert seen == [1.0, 1.5, 2.25]
+
+    bad = kestrel.Graph("bad")
+    bad.create_pass("x", "NoSuchPass", {"alpha": 1})
+    with pytest.raises(kestrel.GraphError, match="NoSuchPass"):
+        bad.validate()
+    with pytest.raises(kestrel.Error, match="already"):
+        bad.create_pass("x", "TAA")
+    with pytest.raises(kestrel.Error, match="expected 'pass.port'"):
+        bad.add_edge("x", "y.color")
