@@ -92,7 +92,15 @@ std::shared_ptr<RunObject> run(const std::shared_ptr<CompiledObject>& compiled, 
     so.writeOutputs = a.writeOutputs;
     std::optional<Progress> progress;
     if (!a.progress.is_none()) progress.emplace(a.progress);
-    so.stop = [&progress] { return progress && progress->stopRequested(); };
+    // Ctrl-C (and any signal handler that raises) ends the run after the frame in progress:
+    // Python runs its handlers only when it gets the lock back.
+    bool signalled = false;
+    so.stop = [&progress, &signalled] {
+        if (progress && progress->stopRequested()) return true;
+        py::gil_scoped_acquire lock;
+        signalled = PyErr_CheckSignals() != 0;
+        return signalled;
+    };
     SequenceRunner runner(*compiled->graph, so);
 
     auto r = std::make_shared<RunObject>();
@@ -108,6 +116,7 @@ std::shared_ptr<RunObject> run(const std::shared_ptr<CompiledObject>& compiled, 
         py::gil_scoped_release unlocked;
         r->result = runner.run(*r->exec, progress ? &*progress : nullptr);
     }
+    if (signalled) throw py::error_already_set();  // the handler's exception, as raised
     if (r->result.end == SequenceEnd::Failed) throwRunError(r->result.error, r->result.frameError);
     return r;
 }

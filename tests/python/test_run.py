@@ -131,3 +131,44 @@ def test_interpreter_lock_is_released_while_cpp_runs(scene):
     during = [x for x in ticks if start < x < end]
     # With the lock held through the run the other thread could not tick at all.
     assert len(during) >= 3, (len(during), end - start)
+
+
+def test_signal_handlers_run_between_frames():
+    """Ctrl-C stops a run after the frame in progress, not at its end."""
+    import os
+    import signal
+
+    import numpy as np
+
+    src = kestrel.ArraySource("SignalFeed", {"a": "float3", "b": "float3"})
+    one = np.ones((256, 256, 3), np.float32)
+    src.set_frame(1, {"a": one, "b": one})
+    g = kestrel.Graph()
+    g.create_pass("in", "SignalFeed")
+    g.create_pass("mix", "Mix")
+    g.add_edge("in.a", "mix.a")
+    g.add_edge("in.b", "mix.b")
+    g.mark_output("mix.color")
+    c = g.compile(first_frame=1)
+
+    class Stop(Exception):
+        pass
+
+    state = {"running": False, "seen_running": None}
+
+    def handler(signum, frame):
+        state["seen_running"] = state["running"]
+        raise Stop()
+
+    old = signal.signal(signal.SIGINT, handler)
+    try:
+        timer = threading.Timer(0.05, lambda: os.kill(os.getpid(), signal.SIGINT))
+        timer.start()
+        state["running"] = True
+        with pytest.raises(Stop):
+            kestrel.run(c, frames=[1] * 20000)  # the one frame again and again: ~5 s
+        state["running"] = False
+        timer.join()
+    finally:
+        signal.signal(signal.SIGINT, old)
+    assert state["seen_running"] is True, "the handler ran only after the run"
