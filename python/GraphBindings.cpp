@@ -1,5 +1,6 @@
 // Graphs: load (groups and includes expanded), override, mark outputs, validate, compile, and
 // what the compiler made of them. The calls are the engine's own, as `kestrel run` makes them.
+#include <graphdot/GraphDot.h>
 #include <kestrel/SequenceRunner.h>
 #include <pybind11/stl.h>
 
@@ -250,8 +251,13 @@ void bindCompiledClass(py::module_& m) {
         .def_property_readonly("source_frames",
                                [](const CompiledObject& c) { return sourceFrames(*c.graph); })
         .def(
-            "to_dot", [](const CompiledObject& c) { return c.graph->toDot(); },
-            "Graphviz DOT of every pass, left-out ones dashed (`kestrel graph --dot --all`)")
+            "to_dot",
+            [](const CompiledObject& c, bool all) {
+                return all ? c.graph->toDot() : graphdot::overviewDot(*c.graph);
+            },
+            py::arg("all") = false,
+            "Graphviz DOT as `kestrel graph --dot`: one box per group instance and the live "
+            "passes; all=True: every pass, left-out ones dashed with their reasons (--all)")
         .def(
             "to_json", [](const CompiledObject& c) { return c.graph->provenanceJson(); },
             "Compact JSON of the live passes and their effective parameters (provenance)");

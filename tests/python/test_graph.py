@@ -5,7 +5,7 @@ import json
 import pytest
 
 import kestrel
-from conftest import SVGF, cli_errors
+from conftest import SVGF, cli, cli_errors
 
 
 def test_error_classes_follow_the_engine():
@@ -101,3 +101,15 @@ def test_pass_types_list_ports_and_parameters():
     assert any(p["name"] == "color" and p["kind"] == "input" for p in taa["ports"])
     alpha = next(p for p in taa["params"] if p["name"] == "alpha")
     assert alpha["type"] == "float" and alpha["min"] <= alpha["default"] <= alpha["max"]
+
+
+def test_dot_equals_kestrel_graph_dot(scene, tmp_path):
+    out = str(tmp_path / "frame_####.exr")
+    g = kestrel.load_graph(SVGF, set=["input.path=" + scene["noisy"], "output.path=" + out])
+    c = g.compile(first_frame=1)
+    for flags, dot in (([], c.to_dot()), (["--all"], c.to_dot(all=True))):
+        rc, text, err = cli("graph", SVGF, "--input", scene["noisy"],
+                            "--set", "output.path=" + out, "--dot", *flags)
+        assert rc == 0, err
+        assert dot == text
+    assert c.to_dot() != c.to_dot(all=True)
