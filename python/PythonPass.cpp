@@ -145,7 +145,7 @@ void registerPass(const py::object& cls) {
                 instance = py::reinterpret_borrow<py::object>(raw)(paramDict(values));
             } catch (py::error_already_set& e) {
                 std::string what = e.what();
-                throw Error(desc.type + ": " + what.substr(0, what.find('\n')));
+                throw Error(what.substr(0, what.find('\n')));  // the compiler names the pass
             }
             return std::make_unique<PythonPass>(std::move(instance), desc);
         },

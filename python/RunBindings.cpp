@@ -41,7 +41,8 @@ struct FrameObject {
     }
 };
 
-/// Calls the progress callback with the lock held. A callback returning False stops the run
+/// Calls the progress callback with the lock held. A callback returning False (not None nor
+/// another falsy value: a callback may return whatever it computed) stops the run
 /// after that frame; an exception it raises ends the run and reaches the caller.
 class Progress : public SequenceObserver {
 public:
@@ -56,7 +57,7 @@ public:
             ~Expire() { f.exec = nullptr; }
         } expire{*frame};
         py::object answer = callback_(frame);
-        if (!answer.is_none() && !answer.cast<bool>()) stop_ = true;
+        if (answer.ptr() == Py_False) stop_ = true;  // only False: not any falsy value returned
     }
 
 private:

@@ -236,3 +236,31 @@ def test_graph_built_in_code_with_a_history_edge():
         bad.create_pass("x", "TAA")
     with pytest.raises(kestrel.Error, match="expected 'pass.port'"):
         bad.add_edge("x", "y.color")
+
+
+def test_constructor_error_is_a_compile_finding():
+    feed, bad = unique("Feed"), unique("BadInit")
+    kestrel.ArraySource(feed, {"color": "float3"})
+
+    class BadInit:
+        type = bad
+        inputs = {"color": "float3"}
+        outputs = {"color": "float3"}
+
+        def __init__(self, params):
+            raise KeyError("oops")
+
+        def execute(self, frame, inputs, outputs):
+            pass
+
+    kestrel.register_pass(BadInit)
+    with pytest.raises(kestrel.Error, match="duplicate pass type"):
+        kestrel.register_pass(BadInit)
+    g = kestrel.Graph()
+    g.create_pass("in", feed)
+    g.create_pass("b", bad)
+    g.add_edge("in.color", "b.color")
+    g.mark_output("b.color")
+    with pytest.raises(kestrel.GraphError) as e:
+        g.compile(first_frame=1)
+    assert str(e.value) == f"passes[1] (b): pass 'b' ({bad}): KeyError: 'oops'"

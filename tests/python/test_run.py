@@ -67,6 +67,10 @@ def test_callback_false_stops_and_exceptions_propagate(scene):
     c, _ = compiled_svgf(scene)
     run = kestrel.run(c, frames="1-4", progress=lambda f: False)
     assert run.stopped and len(run.frames) == 1
+    # Only False stops: a callback returning what it computed (an array, 0) runs on.
+    for value in (0, None, np.zeros((2, 2)), ""):
+        run = kestrel.run(c, frames="1-4", progress=lambda f, v=value: v)
+        assert not run.stopped and len(run.frames) == 4
 
     def boom(frame):
         raise ValueError(f"boom at {frame.frame}")
