@@ -154,6 +154,25 @@ py::dict passRow(const FrameRecord& f) {
     return row;
 }
 
+/// The last frame's planes of a marked output as views. A finished run's executor runs no more
+/// frames, so its memory holds still; each view holds the Run (its numpy base), so the memory
+/// lives as long as any view does.
+py::tuple planes(const py::object& self, const std::string& passPort) {
+    const RunObject& r = self.cast<const RunObject&>();
+    const ImageView view = r.exec->output(passPort);
+    if (!view.valid()) throw Error(passPort + ": the resource holds no image");
+    const std::vector<py::ssize_t> shape{view.height(), view.width()};
+    py::tuple out(size_t(view.channels()));
+    for (int c = 0; c < view.channels(); ++c) {
+        py::array a = view.format == Format::Int32
+                          ? py::array(py::dtype::of<int32_t>(), shape, {}, view.ints(), self)
+                          : py::array(py::dtype::of<float>(), shape, {}, view.channel(c), self);
+        a.attr("setflags")(py::arg("write") = false);
+        out[size_t(c)] = a;
+    }
+    return out;
+}
+
 void bindFrame(py::module_& m) {
     py::class_<FrameObject, std::shared_ptr<FrameObject>>(
         m, "Frame", "A frame as the progress callback sees it")
@@ -192,7 +211,10 @@ void bindRunClass(py::module_& m) {
                 return copyToArray(r.exec->output(passPort));
             },
             py::arg("pass_port"),
-            "A copy of a marked output of the last frame run, (height, width, channels)");
+            "A copy of a marked output of the last frame run, (height, width, channels)")
+        .def("planes", &planes, py::arg("pass_port"),
+             "Read-only (height, width) views of each channel of a marked output of the last "
+             "frame, without a copy: they keep the run's memory alive (nothing writes it again)");
 }
 
 }  // namespace

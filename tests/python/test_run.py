@@ -222,3 +222,19 @@ def test_svgf_on_a_blender_render():
     assert len(errors) == 4
     # Denoised beats the 1-spp input by a wide margin on every frame.
     assert all(e > f["psnr"] + 10 for e, f in zip(errors, noisy["frames"]))
+
+
+def test_planes_are_views_that_keep_the_run_alive(scene):
+    c, port = compiled_svgf(scene)
+    run = kestrel.run(c, frames="1-2")
+    copy = run.output(port)
+    planes = run.planes(port)
+    assert len(planes) == 3 and planes[0].shape == (27, 48)
+    assert not planes[0].flags.owndata and not planes[0].flags.writeable
+    np.testing.assert_array_equal(np.stack(planes, axis=-1), copy)
+    del run, c
+    gc.collect()
+    # Another run's memory comes and goes; the views' run (their base) is alive, its memory too.
+    kestrel.run(compiled_svgf(scene, "*.sigmaL=1")[0], frames="1-2")
+    gc.collect()
+    np.testing.assert_array_equal(np.stack(planes, axis=-1), copy)
