@@ -1,6 +1,7 @@
 // Graphs: load (groups and includes expanded), override, mark outputs, validate, compile, and
 // what the compiler made of them. The calls are the engine's own, as `kestrel run` makes them.
 #include <graphdot/GraphDot.h>
+#include <graphpaths/GraphPaths.h>
 #include <kestrel/SequenceRunner.h>
 #include <pybind11/stl.h>
 
@@ -38,11 +39,16 @@ py::list edgeRecords(const GraphDesc& g) {
     return rows;
 }
 
+/// As `kestrel run GRAPH --input ... --output ... --set ...` prepares it (in that order).
 std::shared_ptr<GraphObject> loadGraph(const std::string& path,
-                                       const std::vector<std::string>& sets) {
+                                       const std::vector<std::string>& sets,
+                                       const std::vector<std::string>& inputs,
+                                       const std::vector<std::string>& outputs) {
     auto g = std::make_shared<GraphObject>();
     g->session = session();
     g->desc = loadGraphFile(path);
+    graphpaths::assignInputs(g->desc, g->session->registry, inputs);
+    graphpaths::assignOutputs(g->desc, g->session->registry, outputs);
     for (const auto& s : sets) applyOverride(g->desc, s, &g->session->registry);
     g->sets = sets;
     return g;
@@ -269,7 +275,10 @@ void bindGraph(py::module_& m) {
     bindGraphClass(m);
     bindCompiledClass(m);
     m.def("load_graph", &loadGraph, py::arg("path"), py::arg("set") = std::vector<std::string>{},
-          "Reads a JSON graph (groups, includes, extends) and applies --set-style overrides");
+          py::arg("inputs") = std::vector<std::string>{},
+          py::arg("outputs") = std::vector<std::string>{},
+          "Reads a JSON graph (groups, includes, extends) and applies --input, --output "
+          "(PATTERN or name=PATTERN) and --set-style overrides as `kestrel run` does");
     m.def("pass_types", &passTypes, "Every registered pass type: ports, formats, parameters");
 }
 

@@ -113,3 +113,17 @@ def test_dot_equals_kestrel_graph_dot(scene, tmp_path):
         assert rc == 0, err
         assert dot == text
     assert c.to_dot() != c.to_dot(all=True)
+
+
+def test_inputs_and_outputs_as_the_cli_takes_them(scene, tmp_path):
+    out = str(tmp_path / "frame_####.exr")
+    g = kestrel.load_graph(SVGF, inputs=[scene["noisy"]], outputs=["output=" + out])
+    params = {p["name"]: p["params"] for p in g.passes}
+    assert params["input"]["path"] == scene["noisy"] and params["output"]["path"] == out
+    with pytest.raises(kestrel.Error) as e:
+        kestrel.load_graph(SVGF, inputs=["nope=x.exr"])
+    assert "no input pass named 'nope'" in str(e.value)
+    assert [str(e.value)] == cli_errors("graph", SVGF, "--input", "nope=x.exr")
+    with pytest.raises(kestrel.Error) as e:
+        kestrel.load_graph(SVGF, outputs=["input=y.exr"])
+    assert "no output pass named 'input'" in str(e.value)
