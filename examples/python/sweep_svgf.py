@@ -1,10 +1,11 @@
 #!/usr/bin/env python3
 """Parameter sweep of graphs/svgf.json from Python: error against time, plotted with matplotlib.
 
-Each setting of the A-Trous edge-stopping weight sigmaL (every chain: '*.sigmaL=V') is run over a
-sequence with `kestrel.run`; the error of every frame against the reference is measured with the
-metrics of `kestrel compare`, in memory, and the median time per frame is taken from the run.
-The plot (mean relMSE against median ms per frame, one point per value) goes to a PNG.
+Each value of a parameter (default: the A-Trous iterations of every chain, '*.iterations=1..5',
+written as `kestrel bench --sweep` takes it) is run over a sequence with `kestrel.run`; the error
+of every frame against the reference is measured with the metrics of `kestrel compare`, in
+memory, and the median time per frame is taken from the run. The plot (mean relMSE against median
+ms per frame, one point per value) goes to a PNG.
 
     PYTHONPATH=build/python /usr/bin/python3 examples/python/sweep_svgf.py \\
         --input scene/noisy/frame_####.exr --reference scene/ref/frame_####.exr --out sweep.png
@@ -49,7 +50,8 @@ def main():
     ap.add_argument("--input", help="noisy frames, frame_####.exr (default: a generated scene)")
     ap.add_argument("--reference", help="reference frames, frame_####.exr")
     ap.add_argument("--frames", default="1-4", help="frames to run (default 1-4)")
-    ap.add_argument("--values", default="1,2,4,8,16", help="sigmaL values")
+    ap.add_argument("--sweep", default="*.iterations=1,2,3,4,5",
+                    help="PARAM=V1,V2,... as kestrel bench --sweep (default *.iterations=1,2,3,4,5)")
     ap.add_argument("--size", default="96x54", help="generated scene size (without --input)")
     ap.add_argument("--out", default="sweep.png", help="the plot")
     args = ap.parse_args()
@@ -66,20 +68,21 @@ def main():
 
     frames = [int(f) for f in args.frames.split("-")]
     frames = list(range(frames[0], frames[-1] + 1))
+    param, values = args.sweep.split("=", 1)
     rows = []
-    for v in args.values.split(","):
-        err, ms = measure(SVGF, args.input, args.reference, f"*.sigmaL={v}", frames)
-        rows.append({"sigmaL": float(v), "relMse": err, "ms": ms})
-        print(f"sigmaL={v:>5}  relMSE {err:.5f}  {ms:.2f} ms/frame")
+    for v in values.split(","):
+        err, ms = measure(SVGF, args.input, args.reference, f"{param}={v}", frames)
+        rows.append({"value": v, "relMse": err, "ms": ms})
+        print(f"{param}={v:<6}  relMSE {err:.5f}  {ms:.2f} ms/frame")
 
     fig, ax = plt.subplots(figsize=(6, 4))
-    ax.plot([r["ms"] for r in rows], [r["relMse"] for r in rows], "o-")
+    ax.plot([r["ms"] for r in rows], [r["relMse"] for r in rows], "o")
     for r in rows:
-        ax.annotate(f"sigmaL={r['sigmaL']:g}", (r["ms"], r["relMse"]), fontsize=8,
+        ax.annotate(f"{param}={r['value']}", (r["ms"], r["relMse"]), fontsize=8,
                     xytext=(4, 4), textcoords="offset points")
     ax.set_xlabel("median time per frame (ms)")
     ax.set_ylabel("mean relMSE against the reference")
-    ax.set_title("svgf.json: sweep of *.sigmaL")
+    ax.set_title(f"svgf.json: sweep of {param}")
     fig.tight_layout()
     fig.savefig(args.out, dpi=100)
     print(f"wrote {args.out}")

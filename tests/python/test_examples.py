@@ -10,7 +10,7 @@ def test_sweep_writes_a_plot(tmp_path):
     png = tmp_path / "sweep.png"
     script = SOURCE / "examples" / "python" / "sweep_svgf.py"
     p = subprocess.run([sys.executable, str(script), "--size", "48x27", "--frames", "1-3",
-                        "--values", "2,8", "--out", str(png)],
+                        "--sweep", "*.iterations=1,4", "--out", str(png)],
                        capture_output=True, text=True, timeout=120, env=os.environ.copy())
     assert p.returncode == 0, p.stderr
     assert p.stdout.count("relMSE") == 2
