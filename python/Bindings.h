@@ -4,6 +4,7 @@
 #include <kestrel/Graph.h>
 #include <pybind11/pybind11.h>
 
+#include <atomic>
 #include <memory>
 #include <string>
 #include <vector>
@@ -24,6 +25,8 @@ struct GraphObject {
 struct CompiledObject {
     std::shared_ptr<Session> session;
     std::unique_ptr<CompiledGraph> graph;
+    /// Its passes serve one executor at a time: a second run from another thread is refused.
+    std::atomic<bool> running{false};
 };
 
 void bindGraph(pybind11::module_& m);

@@ -113,6 +113,14 @@ std::shared_ptr<RunObject> run(const std::shared_ptr<CompiledObject>& compiled, 
     info.kestrelVersion = KESTREL_VERSION;
     const Extent size = a.size ? Extent{a.size->first, a.size->second} : Extent{};
     r->exec = std::make_unique<Executor>(*compiled->graph, *r->parallel, info, size);
+    if (compiled->running.exchange(true))
+        throw Error(
+            "this compiled graph is running in another thread: compile the graph again "
+            "for a second run at the same time");
+    struct Done {  // even when a callback raises
+        std::atomic<bool>& flag;
+        ~Done() { flag = false; }
+    } done{compiled->running};
     {
         py::gil_scoped_release unlocked;
         r->result = runner.run(*r->exec, progress ? &*progress : nullptr);

@@ -238,3 +238,25 @@ def test_planes_are_views_that_keep_the_run_alive(scene):
     kestrel.run(compiled_svgf(scene, "*.sigmaL=1")[0], frames="1-2")
     gc.collect()
     np.testing.assert_array_equal(np.stack(planes, axis=-1), copy)
+
+
+def test_one_run_of_a_compiled_graph_at_a_time(scene):
+    c, _ = compiled_svgf(scene)
+    started, release = threading.Event(), threading.Event()
+
+    def hold(frame):
+        started.set()
+        release.wait(10)  # the lock is free while waiting
+
+    t = threading.Thread(target=lambda: kestrel.run(c, frames="1-2", progress=hold))
+    t.start()
+    try:
+        assert started.wait(10)
+        with pytest.raises(kestrel.Error, match="running in another thread"):
+            kestrel.run(c, frames="1-2")
+        # Another compiled graph of the same file runs meanwhile.
+        assert len(kestrel.run(compiled_svgf(scene)[0], frames="1-2").frames) == 2
+    finally:
+        release.set()
+        t.join()
+    assert len(kestrel.run(c, frames="1-2").frames) == 2
