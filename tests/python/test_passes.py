@@ -264,3 +264,40 @@ def test_constructor_error_is_a_compile_finding():
     with pytest.raises(kestrel.GraphError) as e:
         g.compile(first_frame=1)
     assert str(e.value) == f"passes[1] (b): pass 'b' ({bad}): KeyError: 'oops'"
+
+
+def test_python_source_reports_its_frames_and_size(tmp_path):
+    source = unique("PySource")
+
+    class Ramp:
+        type = source
+        outputs = {"color": "float3"}
+
+        def __init__(self, params):
+            pass
+
+        def frames(self):
+            return [1, 2]
+
+        def begin_frame(self, frame):
+            if frame > 2:
+                raise kestrel.FrameError(f"no frame {frame} in the ramp")
+            return (4, 3)  # width, height
+
+        def execute(self, frame, inputs, outputs):
+            for plane in outputs["color"]:
+                plane[...] = frame["frame"] * np.arange(4, dtype=np.float32)
+
+    kestrel.register_pass(Ramp)
+    g = kestrel.Graph()
+    g.create_pass("src", source)
+    g.mark_output("src.color")
+    c = g.compile(first_frame=1)
+    assert c.source_frames == [1, 2]
+    run = kestrel.run(c)
+    assert [f["frame"] for f in run.frames] == [1, 2]
+    img = run.output("src.color")
+    assert img.shape == (3, 4, 3)
+    np.testing.assert_array_equal(img[1, :, 0], [0, 2, 4, 6])
+    with pytest.raises(kestrel.FrameError, match="frame 3, pass 'src'.*no frame 3 in the ramp"):
+        kestrel.run(c, frames=[3])
