@@ -80,6 +80,7 @@ Outcome runOne(Executor& exec, ScheduledFrame f, const SequenceOptions& o, Seque
         }
         result.end = SequenceEnd::Failed;
         result.error = e.what();
+        result.frameError = true;
         return Outcome::Failed;
     } catch (const Error& e) {
         result.end = SequenceEnd::Failed;

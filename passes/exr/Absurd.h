@@ -9,14 +9,14 @@
 
 namespace kestrel::exr {
 
-// No render's light, depth (1e10 on the sky), vector or id comes near this; issue 40 reported
+// No render's light, depth (1e10 on the sky), vector or id comes near this; an input once had
 // -1e38 albedo in one frame leaving values up to 3.8e8 in the history nine frames later.
 constexpr float kAbsurd = 1e30f;
 
 // Negative light is a pixel filter's negative lobe (Cycles' filters have none): at most ~13%
 // (Lanczos) of the brightest light beside it, which in a Cycles render is the sun's disc (about
 // 1.5e7 at 1000 W/m^2). Below this a value is damage: -1e10 in the colour of one frame left
-// -1e7 in the history nine frames later (issue 40).
+// -1e7 in the history nine frames later.
 constexpr float kMostNegativeLight = -1e8f;
 
 /// The lowest valid value of an output: albedos are reflectances, never negative (a -1e10

@@ -907,7 +907,7 @@ void ExrLoader::checkFrameSize(const ExrInput& in) const {
     const int64_t W = in.displayWindow().width(), H = in.displayWindow().height();
     if (firstFrame_.path.empty() || (W == firstFrame_.width && H == firstFrame_.height)) return;
     // A re-render at another size mid-shot (or a stray file): filtering it with the history of
-    // the others is meaningless, and resetting history silently hid it (issue 40).
+    // the others is meaningless, and resetting history silently hid it.
     throw FrameError(fmt::format(
         "frame {}: {}: the frame is {}x{}, the first frame ({}, frame {}) is {}x{}: every frame "
         "of a sequence must have the first frame's size (--skip-bad-frames skips it)",

@@ -289,7 +289,7 @@ bool ZipScanlines::decodeChunk(int fd, int chunk, const std::vector<float*>& dst
                     uint64_t(ix0 - int64_t(data_.x0)) * uint64_t(valueBytes(ch.type));
                 float* row = dst[c] + size_t(yy - dp.y0) * size_t(W) + size_t(ix0 - int64_t(dp.x0));
                 convert(src, j, ch.type, count, row);
-                // While the row is in cache: no second pass over the plane (issue 40).
+                // While the row is in cache: no second pass over the plane.
                 if (fix[c].on)
                     if (const size_t n = replaceAbsurd(row, count, fix[c].fill, fix[c].lowest))
                         *fix[c].replaced += n;

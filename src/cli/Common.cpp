@@ -36,60 +36,14 @@ std::unique_ptr<Plugins> loadPlugins() {
 }
 
 namespace {
+using graphpaths::isSink;
+using graphpaths::pathParam;
+
 fs::path exeDir() {
     std::error_code ec;
     return fs::read_symlink("/proc/self/exe", ec).parent_path();
 }
-
-bool isSink(const PassType& t) {
-    return t.desc.sink && t.desc.findParam("path") != nullptr;
-}
-
-std::string pathParam(const PassNode& n) {
-    auto j = nlohmann::json::parse(n.paramsJson);
-    if (j.contains("path") && j["path"].is_string()) return j["path"];
-    return {};
-}
-
-/// Applies "PATTERN" or "name=PATTERN" to the path of the matching pass.
-void assignPaths(GraphDesc& g, const Registry& reg, const std::vector<std::string>& specs,
-                 bool (*kind)(const PassType&), const char* flag) {
-    std::vector<std::string> candidates;
-    for (const auto& n : g.passes)
-        if (const PassType* t = reg.find(n.type); t && kind(*t)) candidates.push_back(n.name);
-    for (const auto& spec : specs) {
-        std::string name, pattern = spec;
-        auto eq = spec.find('=');
-        if (eq != std::string::npos && eq > 0 && spec.find('/') > eq) {
-            name = spec.substr(0, eq);
-            pattern = spec.substr(eq + 1);
-        } else {
-            if (candidates.size() != 1) {
-                std::string list;
-                for (const auto& c : candidates) list += (list.empty() ? "" : ", ") + c;
-                throw Error(std::string(flag) + " " + spec + ": the graph has " +
-                            std::to_string(candidates.size()) + " such passes (" + list +
-                            "); write " + flag + " name=PATTERN");
-            }
-            name = candidates.front();
-        }
-        if (std::find(candidates.begin(), candidates.end(), name) == candidates.end())
-            throw Error(std::string(flag) + " " + spec + ": no " +
-                        (std::string(flag) == "--input" ? "input" : "output") + " pass named '" +
-                        name + "'");
-        applyOverride(g, name + ".path=" + nlohmann::json(pattern).dump(), &reg, flag);
-    }
-}
 }  // namespace
-
-bool isSourceType(const PassType& t) {
-    for (const auto& p : t.desc.ports)
-        if (p.kind == PortKind::Input) return false;
-    return true;
-}
-bool isSource(const PassType& t) {
-    return isSourceType(t) && t.desc.findParam("path") != nullptr;
-}
 
 fs::path shippedGraph(const std::string& name) {
     fs::path installed = exeDir() / ".." / KESTREL_INSTALL_GRAPH_DIR / name;
@@ -101,8 +55,8 @@ fs::path shippedGraph(const std::string& name) {
 GraphDesc prepareGraph(const GraphOptions& o, const Registry& reg) {
     fs::path path = o.graph.empty() ? shippedGraph("svgf.json") : fs::path(o.graph);
     GraphDesc g = loadGraphFile(path);
-    assignPaths(g, reg, o.inputs, isSource, "--input");
-    assignPaths(g, reg, o.outputs, isSink, "--output");
+    graphpaths::assignInputs(g, reg, o.inputs);
+    graphpaths::assignOutputs(g, reg, o.outputs);
     for (const auto& s : o.sets) applyOverride(g, s, &reg);
     for (const auto& n : g.passes) {
         const PassType* t = reg.find(n.type);
@@ -201,13 +155,6 @@ std::string frameRuns(const std::vector<int64_t>& frames) {
     return s;
 }
 }  // namespace
-
-std::string sourcePath(const GraphDesc& g, const Registry& reg) {
-    for (const auto& n : g.passes)
-        if (const PassType* t = reg.find(n.type); t && isSource(*t) && !pathParam(n).empty())
-            return pathParam(n);
-    return {};
-}
 
 void checkFramesExist(const std::vector<int64_t>& asked, std::vector<int64_t> available,
                       const std::string& option, const std::string& input,

@@ -1,6 +1,7 @@
 #pragma once
 // Shared by the CLI's subcommands: logging set-up, plugin loading, preparing a graph with the
 // user's --input/--output/--set, and printing diagnostics.
+#include <graphpaths/GraphPaths.h>
 #include <kestrel/Compiler.h>
 #include <kestrel/Graph.h>
 #include <kestrel/Plugin.h>
@@ -26,10 +27,10 @@ struct Plugins {
 };
 std::unique_ptr<Plugins> loadPlugins();
 
-/// A pass type with no inputs (a source: its time is reported apart from the filter's).
-bool isSourceType(const PassType& t);
-/// A source reading files: no inputs and a "path" parameter (what --input sets).
-bool isSource(const PassType& t);
+// Sources and writers as --input and --output see them (shared with the Python module).
+using graphpaths::isSource;
+using graphpaths::isSourceType;
+using graphpaths::sourcePath;
 
 /// The graph shipped under `name` (e.g. "svgf.json"): install share dir or source tree.
 std::filesystem::path shippedGraph(const std::string& name);
@@ -64,9 +65,6 @@ void refuseUnusedOverrides(const CompiledGraph& compiled, const std::vector<std:
 /// Runs `fn`; a GraphError or Error it throws (bad options, a graph that does not prepare) is
 /// printed, one line per finding, and gives exit code 2 (docs/errors.md).
 int exitTwoOnUsageError(const std::function<int()>& fn);
-
-/// The path pattern of the graph's first file source ("" when none has one).
-std::string sourcePath(const GraphDesc& graph, const Registry& registry);
 
 /// Throws Error (a usage error, before frame 1) naming the frames of `asked` before the input's
 /// first frame or after its last, and the frames it has; nothing when `available` is empty (a

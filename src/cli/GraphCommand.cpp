@@ -1,9 +1,10 @@
+#include <graphdot/GraphDot.h>
+
 #include <fstream>
 #include <iostream>
 
 #include "Commands.h"
 #include "Common.h"
-#include "GraphDot.h"
 #include "OutputSafety.h"
 #include "kestrel/Log.h"
 #include "kestrel/SequenceRunner.h"
@@ -56,7 +57,7 @@ void addGraphCommand(CLI::App& app, Action& action) {
             }
             std::string text;
             if (*dot) {
-                text = *all ? compiled->toDot() : overviewDot(*compiled);
+                text = *all ? compiled->toDot() : graphdot::overviewDot(*compiled);
             } else {
                 for (const auto& n : compiled->executionOrder()) text += n + "\n";
                 for (const auto& p : compiled->report().pruned)

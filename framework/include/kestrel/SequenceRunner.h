@@ -82,6 +82,9 @@ struct SequenceResult {
     std::vector<FrameRecord> frames;    ///< every frame that ran, in order
     std::vector<SkippedFrame> skipped;  ///< frames skipped under skipBadFrames
     std::string error;                  ///< Failed: the message, one line
+    /// Failed by a FrameError (one frame's input), not a fatal Error: front ends that map error
+    /// classes (the Python module's exceptions) keep the class the message came from.
+    bool frameError = false;
     int64_t lastFrame = 0;              ///< the last frame attempted (ran, skipped or failed)
     size_t written() const;
 };

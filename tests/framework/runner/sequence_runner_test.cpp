@@ -233,6 +233,7 @@ TEST_F(SequenceRunnerTest, BadFrameFailsTheRunNamingTheFrame) {
     EXPECT_EQ(r.end, SequenceEnd::Failed);
     EXPECT_NE(r.error.find("frame 3"), std::string::npos) << r.error;
     EXPECT_NE(r.error.find("src3.exr"), std::string::npos) << r.error;
+    EXPECT_TRUE(r.frameError) << "a missing input fails the run as a FrameError";
     EXPECT_EQ(r.lastFrame, 3);
     EXPECT_EQ(framesOf(r), (V{1, 2}));
     EXPECT_EQ(seen.written, (V{1, 2}));
@@ -284,6 +285,7 @@ TEST_F(SequenceRunnerTest, BeginRunFailureRunsNoFrame) {
     const SequenceResult r = runner.run(exec);
     EXPECT_EQ(r.end, SequenceEnd::Failed);
     EXPECT_NE(r.error.find("cannot open out/"), std::string::npos) << r.error;
+    EXPECT_FALSE(r.frameError);
     EXPECT_TRUE(r.frames.empty());
     EXPECT_TRUE(seen.ran.empty());
 }

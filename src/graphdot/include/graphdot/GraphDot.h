@@ -6,9 +6,9 @@
 
 #include "kestrel/Compiler.h"
 
-namespace kestrel::cli {
+namespace kestrel::graphdot {
 
 /// Graphviz DOT of the live passes, each top-level group instance collapsed into one node.
 std::string overviewDot(const CompiledGraph& compiled);
 
-}  // namespace kestrel::cli
+}  // namespace kestrel::graphdot

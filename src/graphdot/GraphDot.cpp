@@ -1,11 +1,11 @@
-#include "GraphDot.h"
+#include "graphdot/GraphDot.h"
 
 #include <functional>
 #include <map>
 #include <set>
 #include <sstream>
 
-namespace kestrel::cli {
+namespace kestrel::graphdot {
 
 namespace {
 
@@ -115,4 +115,4 @@ std::string overviewDot(const CompiledGraph& compiled) {
     return o.str();
 }
 
-}  // namespace kestrel::cli
+}  // namespace kestrel::graphdot
