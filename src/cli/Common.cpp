@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <iostream>
+#include <map>
 #include <nlohmann/json.hpp>
 
 #include "DefaultScene.h"
@@ -154,13 +155,26 @@ int exitTwoOnUsageError(const std::function<int()>& fn) {
 
 std::string markSinkInput(GraphDesc& g, const Registry& reg, bool detach) {
     std::vector<std::string> sinks;
+    std::map<std::string, std::string> firstInput;  // sink -> its first required input (the image)
     for (const auto& p : g.passes)
-        if (const PassType* t = reg.find(p.type); t && t->desc.sink) sinks.push_back(p.name);
+        if (const PassType* t = reg.find(p.type); t && t->desc.sink) {
+            sinks.push_back(p.name);
+            for (const auto& port : t->desc.ports)
+                if (port.kind == PortKind::Input && !port.optional) {
+                    firstInput[p.name] = port.name;
+                    break;
+                }
+        }
     auto isSinkName = [&](const std::string& n) {
         return std::find(sinks.begin(), sinks.end(), n) != sinks.end();
     };
+    // The edge into the first writer's image, not one into an optional input such as its alpha
+    // (a graph that extends another may list that edge first).
     std::string marked;
     for (const auto& e : g.edges)
+        if (isSinkName(e.toPass) && marked.empty() && firstInput[e.toPass] == e.toPort)
+            marked = e.fromPass + "." + e.fromPort;
+    for (const auto& e : g.edges)  // writers with optional inputs only: the first edge
         if (isSinkName(e.toPass) && marked.empty()) marked = e.fromPass + "." + e.fromPort;
     if (marked.empty())
         throw Error("graph '" + g.name + "' has no writer whose input could be measured");
