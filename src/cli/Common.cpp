@@ -99,11 +99,21 @@ fs::path shippedGraph(const std::string& name) {
     return fs::path(KESTREL_SOURCE_GRAPH_DIR) / name;
 }
 
+namespace {
+void keepPassesOnWriters(GraphDesc& g, const Registry& reg) {
+    for (const auto& n : std::vector<PassNode>(g.passes))
+        if (const PassType* t = reg.find(n.type);
+            t && isSink(*t) && t->desc.findParam("keepPasses"))
+            applyOverride(g, n.name + ".keepPasses=true", &reg);
+}
+}  // namespace
+
 GraphDesc prepareGraph(const GraphOptions& o, const Registry& reg) {
     fs::path path = o.graph.empty() ? shippedGraph("svgf.json") : fs::path(o.graph);
     GraphDesc g = loadGraphFile(path);
     assignPaths(g, reg, o.inputs, isSource, "--input");
     assignPaths(g, reg, o.outputs, isSink, "--output");
+    if (o.keepPasses) keepPassesOnWriters(g, reg);  // before --set, which may turn one off
     for (const auto& s : o.sets) applyOverride(g, s, &reg);
     for (const auto& n : g.passes) {
         const PassType* t = reg.find(n.type);
