@@ -310,7 +310,9 @@ PassDesc ExrWriter::describe() {
                "OpenEXR's default (1080p half RGB, 2 threads: see docs/benchmarks.md)");
     d.paramString("preview", "", "PNG preview pattern (empty: no preview)");
     d.paramFloat("exposure", 0.0, -20.0, 20.0, "preview exposure in stops");
-    d.paramEnum("tonemap", "aces", {"aces", "reinhard", "clamp"}, "preview tone curve");
+    d.paramEnum("tonemap", "aces", {"aces", "reinhard", "clamp"},
+                "preview tone curve (where $OCIO names no OpenColorIO config: with one, previews "
+                "use its default display and view)");
     d.paramBool("keepPasses", false,
                 "also write the input frame's other channels (its AOVs; not the colour and alpha "
                 "this output replaces) and its header attributes (camera, frame, render stats), "
@@ -327,8 +329,10 @@ ExrWriter::ExrWriter(const ParamValues& p)
       zipLevel_(int(p.getInt("zipLevel"))),
       exposure_(p.getFloat("exposure")),
       keepPasses_(p.getBool("keepPasses")) {
-    if (!p.getString("preview").empty())
+    if (!p.getString("preview").empty()) {
         preview_ = std::make_unique<FramePattern>(p.getString("preview"));
+        view_ = OcioView::fromEnvironment();
+    }
     std::tie(faultStep_, faultFrame_) = faultFromEnvironment();
     const std::string& tm = p.getString("tonemap");
     toneMap_ = tm == "reinhard" ? ToneMap::Reinhard
@@ -337,6 +341,7 @@ ExrWriter::ExrWriter(const ParamValues& p)
 }
 
 void ExrWriter::resolve(ResolveContext& rc) {
+    if (view_) rc.note("previews through OpenColorIO ($OCIO): " + view_->describe());
     if (keepPasses_) {
         kept_ = std::make_unique<KeptSource>(KeptSource::fromFacts(rc));
         rc.note("keeps the input's other channels and header attributes (keepPasses)");
@@ -397,7 +402,7 @@ void ExrWriter::execute(FrameContext& ctx, PassIO& io) {
         std::string png = preview_->expand(ctx.frameNumber);
         std::string tmp = tempName(png);
         try {
-            writePngPreview(img, tmp, exposure_, toneMap_);
+            writePngPreview(img, tmp, exposure_, toneMap_, view_.get());
             syncToDisk(tmp, false);
             fs::rename(tmp, png);
         } catch (const std::exception& e) {

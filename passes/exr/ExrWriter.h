@@ -40,6 +40,7 @@ private:
 
     FramePattern path_;
     std::unique_ptr<FramePattern> preview_;
+    std::unique_ptr<OcioView> view_;  ///< previews through $OCIO's default view, if set
     std::string pixelType_;  // half, float or auto (the source's, resolved at compile time)
     bool half_ = false;
     std::string compression_;
