@@ -375,10 +375,9 @@ bool ExrWriter::frameWritten(int64_t frame, const std::string& provenance) const
     if (!preview_) return true;
     const std::string png = preview_->expand(frame);
     if (isCompletePng(png)) return true;
-    spdlog::warn(
-        "ExrWriter: preview {} is missing or incomplete (a failed write?); frame {} is "
-        "written again",
-        png, frame);
+    spdlog::warn("ExrWriter: preview {} is missing or incomplete (a failed write?); frame {} is "
+                 "written again",
+                 png, frame);
     return false;
 }
 
