@@ -6,7 +6,7 @@ cd "$(dirname "$0")/.."
 
 packages=(cmake g++ make pkg-config libopenexr-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
           libgtest-dev libcli11-dev libpng-dev libbenchmark-dev libhwy-dev libdeflate-dev
-          libopencolorio-dev)
+          libopencolorio-dev libopenimageio-dev)
 missing=()
 for p in "${packages[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
