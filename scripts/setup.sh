@@ -6,6 +6,7 @@ cd "$(dirname "$0")/.."
 
 packages=(cmake g++ make pkg-config libopenexr-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
           libgtest-dev libcli11-dev libpng-dev libbenchmark-dev libhwy-dev libdeflate-dev
+          libopencolorio-dev libopenimageio-dev
           pybind11-dev python3-dev python3-numpy python3-pytest python3-matplotlib)
 missing=()
 for p in "${packages[@]}"; do

@@ -1,5 +1,9 @@
 #include "ChannelPlan.h"
 
+#include <cmath>
+#include <cstdlib>
+
+#include "ChannelPresets.h"
 #include "kestrel/Conventions.h"
 #include "kestrel/Error.h"
 
@@ -439,73 +443,136 @@ Plan planGames202(const ChannelSets& files) {
     return b.plan;
 }
 
+namespace {
+
+/// `s` cut at each `sep` outside parentheses (a per-channel constant "(1,-1)" holds commas).
+std::vector<std::string> splitOutsideParens(const std::string& s, char sep) {
+    std::vector<std::string> parts(1);
+    int depth = 0;
+    for (char c : s) {
+        depth += c == '(' ? 1 : c == ')' ? -1 : 0;
+        if (c == sep && depth == 0)
+            parts.emplace_back();
+        else
+            parts.back() += c;
+    }
+    return parts;
+}
+
+/// A number as the whole of `text`, or nullopt.
+std::optional<float> number(const std::string& text) {
+    if (text.empty()) return std::nullopt;
+    char* end = nullptr;
+    const float v = std::strtof(text.c_str(), &end);
+    if (end != text.c_str() + text.size() || !std::isfinite(v)) return std::nullopt;
+    return v;
+}
+
+/// A constant factor: a number ("-0.5": every channel) or one per channel ("(1,-1)"), as `n`
+/// scales; nullopt when `g` is no constant (a channel group). Throws Error for a constant with
+/// the wrong number of values or a value that is no number.
+std::optional<std::vector<float>> constantFactor(const std::string& g, int n) {
+    if (auto v = number(g)) return std::vector<float>(size_t(n), *v);
+    if (g.size() < 2 || g.front() != '(' || g.back() != ')') return std::nullopt;
+    std::vector<float> values;
+    for (const auto& part : splitOutsideParens(g.substr(1, g.size() - 2), ',')) {
+        auto v = number(part);
+        if (!v) throw Error("'" + part + "' in " + g + " is not a number");
+        values.push_back(*v);
+    }
+    if (int(values.size()) != n)
+        throw Error(g + " has " + std::to_string(values.size()) + " values for an output of " +
+                    std::to_string(n) + " channel(s)");
+    return values;
+}
+
+/// Resets everything a layout set on `r`, for an expression to set it anew.
+void clearRecipe(Recipe& r) {
+    r.terms.clear();
+    r.cap.clear();
+    r.rest.reset();
+    r.backgroundMask.reset();
+    r.skyDepth.reset();
+    r.zeroFallback.reset();
+    r.reflectionOf.reset();
+    r.zeroIsBackground = r.cameraSpace = r.fromDepth = r.rayLength = false;
+    r.scale[0] = r.scale[1] = r.scale[2] = r.scale[3] = 1.f;
+}
+
+/// Sets `r` from `expr` (docs/layouts.md, "The channels override"). Throws Error saying why not.
+void applyExpression(Recipe& r, const std::string& expr, const ChannelSets& files) {
+    const int n = r.format == Format::Int32 ? 1 : channelCount(r.format);
+    const auto terms = splitOutsideParens(expr, '+');
+    bool scaled = false;
+    for (const auto& term : terms) {
+        Term t;
+        for (std::string g : splitOutsideParens(term, '*')) {
+            if (auto k = constantFactor(g, n)) {
+                // The loader scales an output after summing its terms: a constant can scale
+                // only an expression of one term.
+                if (terms.size() > 1)
+                    throw Error("a constant (" + g +
+                                ") may scale only an expression of "
+                                "one term (no '+')");
+                for (int c = 0; c < n; ++c) r.scale[c] *= (*k)[size_t(c)];
+                scaled = true;
+                continue;
+            }
+            std::string file;
+            if (auto colon = g.find(':'); colon != std::string::npos) {
+                file = g.substr(0, colon);
+                g = g.substr(colon + 1);
+            }
+            if (g.empty()) throw Error("empty channel group");
+            auto f = resolveGroup(files, file, g, n);
+            if (!f)
+                throw Error("the file has no channel group '" + g + "' with " + std::to_string(n) +
+                            " channel(s) (tried " + groupHint(g, n) + ", ...)");
+            t.push_back(*f);
+        }
+        if (t.empty()) throw Error("a term of constants only (it needs a channel group)");
+        r.terms.push_back(t);
+    }
+    if (scaled && r.format == Format::Int32) throw Error("an id output cannot be scaled");
+}
+
+}  // namespace
+
 std::set<std::string> applyChannelOverrides(Plan& plan, const std::string& spec,
                                             const ChannelSets& files) {
     std::set<std::string> set;
-    size_t start = 0;
-    while (start < spec.size()) {
-        size_t comma = spec.find(',', start);
-        std::string item =
-            spec.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
-        start = comma == std::string::npos ? spec.size() : comma + 1;
+    for (std::string item : splitOutsideParens(expandChannelPresets(spec), ',')) {
+        // "?out=EXPR" (what presets expand to): only where the file has the channels.
+        const bool optional = !item.empty() && item[0] == '?';
+        if (optional) item.erase(0, 1);
         if (item.empty()) continue;
         auto bad = [&](const std::string& why) {
             return Error("channels: '" + item + "': " + why +
-                         " (expected output=Layer[*Layer][+...], e.g. albedo=ViewLayer.DiffCol)");
+                         " (expected output=Layer[*Layer][+...] or a constant factor, e.g. "
+                         "albedo=ViewLayer.DiffCol, motion=Vector*(1,-1); or @preset)");
         };
         auto eq = item.find('=');
         if (eq == std::string::npos) throw bad("missing '='");
         std::string out = item.substr(0, eq), expr = item.substr(eq + 1);
         Recipe* r = plan.find(out);
         if (!r) throw bad("no loader output named '" + out + "'");
-        set.insert(out);
-        int n = r->format == Format::Int32 ? 1 : channelCount(r->format);
-        r->terms.clear();
-        r->cap.clear();
-        r->rest.reset();
-        r->backgroundMask.reset();
-        r->skyDepth.reset();
-        r->zeroFallback.reset();
-        r->reflectionOf.reset();
-        r->zeroIsBackground = r->cameraSpace = r->fromDepth = r->rayLength = false;
-        r->scale[0] = r->scale[1] = r->scale[2] = r->scale[3] = 1.f;
+        Recipe recipe = *r;
+        clearRecipe(recipe);
         if (expr.empty()) {
-            r->absent = true;
-            r->why = "the channels parameter leaves it out";
-            continue;
-        }
-        size_t ts = 0;
-        while (ts <= expr.size()) {
-            size_t plus = expr.find('+', ts);
-            std::string term =
-                expr.substr(ts, plus == std::string::npos ? std::string::npos : plus - ts);
-            Term t;
-            size_t fs = 0;
-            while (fs <= term.size()) {
-                size_t star = term.find('*', fs);
-                std::string g =
-                    term.substr(fs, star == std::string::npos ? std::string::npos : star - fs);
-                std::string file;
-                if (auto colon = g.find(':'); colon != std::string::npos) {
-                    file = g.substr(0, colon);
-                    g = g.substr(colon + 1);
-                }
-                if (g.empty()) throw bad("empty channel group");
-                auto f = resolveGroup(files, file, g, n);
-                if (!f)
-                    throw bad("the file has no channel group '" + g + "' with " +
-                              std::to_string(n) + " channel(s) (tried " + groupHint(g, n) +
-                              ", ...)");
-                t.push_back(*f);
-                if (star == std::string::npos) break;
-                fs = star + 1;
+            recipe.absent = true;
+            recipe.why = "the channels parameter leaves it out";
+        } else {
+            try {
+                applyExpression(recipe, expr, files);
+            } catch (const Error& e) {
+                if (optional) continue;
+                throw bad(e.what());
             }
-            r->terms.push_back(t);
-            if (plus == std::string::npos) break;
-            ts = plus + 1;
+            recipe.absent = false;
+            recipe.why = expr + " (channels parameter)";
         }
-        r->absent = false;
-        r->why = expr + " (channels parameter)";
+        *r = std::move(recipe);
+        set.insert(out);
     }
     return set;
 }

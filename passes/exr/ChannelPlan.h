@@ -120,8 +120,9 @@ std::vector<std::string> blenderLayers(const std::set<std::string>& channels);
 
 /// Applies the `channels` parameter: "out=EXPR,out=EXPR,..." with EXPR a sum ('+') of products
 /// ('*') of channel groups; a group is a layer ("ViewLayer.DiffCol": its R,G,B or X,Y,Z...) or a
-/// full channel name; an empty EXPR marks the output absent. Throws Error naming the item.
-/// Returns the outputs it set.
+/// full channel name; an empty EXPR marks the output absent. In an EXPR of one term a factor may
+/// be a constant: a number ("-0.5") or one per channel ("(1,-1)"). "@name" items are presets
+/// (ChannelPresets.h). Throws Error naming the item. Returns the outputs it set.
 std::set<std::string> applyChannelOverrides(Plan& plan, const std::string& spec,
                                             const ChannelSets& files);
 

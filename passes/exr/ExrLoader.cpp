@@ -20,6 +20,7 @@
 #include <set>
 
 #include "Absurd.h"
+#include "KeepPasses.h"
 #include "PixelJitter.h"
 #include "Unproject.h"
 
@@ -880,6 +881,7 @@ void ExrLoader::resolve(ResolveContext& rc) {
     // value: edge-stopping filters widen their depth tolerance by that much
     // (kestrel::kDepthPrecisionFact).
     if (depthHalf_) rc.setFact(kDepthPrecisionFact, "0.0009765625");
+    stateSourceFacts(rc, plan_, pattern_.get());  // for a writer's keepPasses
     for (const auto& r : plan_.recipes)
         if (r.absent) rc.setAbsent(r.output, r.why);
 }

@@ -14,6 +14,7 @@
 #include <libdeflate.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <cmath>
@@ -23,6 +24,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <set>
 #include <tuple>
 #include <utility>
 
@@ -308,7 +310,13 @@ PassDesc ExrWriter::describe() {
                "OpenEXR's default (1080p half RGB, 2 threads: see docs/benchmarks.md)");
     d.paramString("preview", "", "PNG preview pattern (empty: no preview)");
     d.paramFloat("exposure", 0.0, -20.0, 20.0, "preview exposure in stops");
-    d.paramEnum("tonemap", "aces", {"aces", "reinhard", "clamp"}, "preview tone curve");
+    d.paramEnum("tonemap", "aces", {"aces", "reinhard", "clamp"},
+                "preview tone curve (where $OCIO names no OpenColorIO config: with one, previews "
+                "use its default display and view)");
+    d.paramBool("keepPasses", false,
+                "also write the input frame's other channels (its AOVs; not the colour and alpha "
+                "this output replaces) and its header attributes (camera, frame, render stats), "
+                "for a compositor; read from the loader's file, a block of rows at a time");
     d.sink = true;
     return d;
 }
@@ -319,9 +327,12 @@ ExrWriter::ExrWriter(const ParamValues& p)
       half_(pixelType_ == "half"),
       compression_(p.getString("compression")),
       zipLevel_(int(p.getInt("zipLevel"))),
-      exposure_(p.getFloat("exposure")) {
-    if (!p.getString("preview").empty())
+      exposure_(p.getFloat("exposure")),
+      keepPasses_(p.getBool("keepPasses")) {
+    if (!p.getString("preview").empty()) {
         preview_ = std::make_unique<FramePattern>(p.getString("preview"));
+        view_ = OcioView::fromEnvironment();
+    }
     std::tie(faultStep_, faultFrame_) = faultFromEnvironment();
     const std::string& tm = p.getString("tonemap");
     toneMap_ = tm == "reinhard" ? ToneMap::Reinhard
@@ -330,6 +341,11 @@ ExrWriter::ExrWriter(const ParamValues& p)
 }
 
 void ExrWriter::resolve(ResolveContext& rc) {
+    if (view_) rc.note("previews through OpenColorIO ($OCIO): " + view_->describe());
+    if (keepPasses_) {
+        kept_ = std::make_unique<KeptSource>(KeptSource::fromFacts(rc));
+        rc.note("keeps the input's other channels and header attributes (keepPasses)");
+    }
     if (pixelType_ != "auto") return;
     half_ = rc.fact("colorPixelType") == "half";
     // Float loses nothing and needs no word; half is said, since it rounds.
@@ -396,7 +412,7 @@ void ExrWriter::execute(FrameContext& ctx, PassIO& io) {
         std::string png = preview_->expand(ctx.frameNumber);
         std::string tmp = tempName(png);
         try {
-            writePngPreview(img, tmp, exposure_, toneMap_);
+            writePngPreview(img, tmp, exposure_, toneMap_, view_.get());
             syncToDisk(tmp, false);
             fs::rename(tmp, png);
         } catch (const std::exception& e) {
@@ -475,7 +491,13 @@ void ExrWriter::writeExr(const ImageView& img, const std::string& file, const Fr
     const int64_t frame = ctx.frameNumber;
     try {
         injectFault("open", frame);
-        if (zip) {
+        if (kept_) {
+            const OwnRow own = [&](const std::string& name, int y, void* dst) {
+                const auto c = std::find(std::begin(rgba), std::end(rgba), name) - std::begin(rgba);
+                convert(ids ? 0 : int(c), size_t(y) * size_t(W), size_t(y + 1) * size_t(W), dst);
+            };
+            writeKeeping(header, tmp, frame, own, threads);
+        } else if (zip) {
             // Converted a scan line at a time as the encoder asks: no frame-sized copy.
             const ZipRowSource rows = [&](size_t ch, size_t row, unsigned char* dst) {
                 convert(channelOf[ch], row * size_t(W), (row + 1) * size_t(W), dst);
@@ -520,6 +542,21 @@ void ExrWriter::writeExr(const ImageView& img, const std::string& file, const Fr
         throw Error("cannot write " + file + ": " + e.what());
     }
     warnSanitised(ctx.frameNumber, nans, clamped, asHalf, limit);
+}
+
+void ExrWriter::writeKeeping(const Imf::Header& header, const std::string& tmp, int64_t frame,
+                             const OwnRow& own, int threads) const {
+    // The output's A replaces the input's alpha only when there is one.
+    std::set<std::string> replaced = kept_->color;
+    if (header.channels().findChannel("A"))
+        replaced.insert(kept_->alpha.begin(), kept_->alpha.end());
+    if (Imf::globalThreadCount() < threads) Imf::setGlobalThreadCount(threads);
+    const std::string input = kept_->pattern.expand(frame);
+    try {
+        writeKeepingPasses(tmp, header, input, replaced, own, Imf::globalThreadCount());
+    } catch (const Error& e) {
+        throw Error("keepPasses: input " + input + ": " + e.what());
+    }
 }
 
 void ExrWriter::warnSanitised(int64_t frameNumber, size_t nans, size_t clamped, bool asHalf,

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "KeepPasses.h"
 #include "PngPreview.h"
 #include "Workspace.h"
 #include "kestrel/FramePattern.h"
@@ -30,6 +31,9 @@ private:
     /// `lent`: the writer's idle planes (PassIO::idlePlanes), for the ZIP encoder's chunk buffers.
     void writeExr(const ImageView& img, const std::string& path, const FrameContext& ctx,
                   const Workspace& lent);
+    /// keepPasses: the output's own channels and the input frame's others, through OpenEXR.
+    void writeKeeping(const Imf::Header& header, const std::string& tmp, int64_t frame,
+                      const OwnRow& own, int threads) const;
     /// Warns (once per run each) of the values written as 0 (NaN) or clamped to the range.
     void warnSanitised(int64_t frameNumber, size_t nans, size_t clamped, bool asHalf, float limit);
     /// Throws when KESTREL_TEST_WRITE_FAULT names this step and frame (tests only).
@@ -37,13 +41,16 @@ private:
 
     FramePattern path_;
     std::unique_ptr<FramePattern> preview_;
+    std::unique_ptr<OcioView> view_;  ///< previews through $OCIO's default view, if set
     std::string pixelType_;  // half, float or auto (the source's, resolved at compile time)
     bool half_ = false;
     std::string compression_;
     int zipLevel_;
     float exposure_;
     ToneMap toneMap_;
-    std::string faultStep_;  // empty unless a test injects a write fault
+    bool keepPasses_ = false;
+    std::unique_ptr<KeptSource> kept_;  ///< keepPasses: the loader's file per frame (resolve)
+    std::string faultStep_;             // empty unless a test injects a write fault
     int64_t faultFrame_ = 0;
 
     // Per-run warning flags (logging only, not image state) and conversion scratch.

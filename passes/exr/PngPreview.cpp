@@ -61,24 +61,47 @@ void idColour(int32_t id, uint8_t rgb[3]) {
 }
 }  // namespace
 
-void writePngPreview(const ImageView& img, const std::string& path, float exposureStops,
-                     ToneMap op) {
-    const int W = img.width(), H = img.height();
-    const int C = img.format == Format::Int32 ? 1 : img.channels();
-    const float gain = std::exp2(exposureStops);
-    std::vector<uint8_t> rgb(size_t(W) * size_t(H) * 3);
-    for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W; ++x) {
-            uint8_t* p = &rgb[(size_t(y) * size_t(W) + size_t(x)) * 3];
-            if (img.format == Format::Int32) {
-                idColour(img.atInt(x, y), p);
-                continue;
-            }
-            for (int c = 0; c < 3; ++c) {
-                int src = C == 1 ? 0 : c;
-                p[c] = src < C ? to8(srgbEncode(toneMap(img.at(src, x, y) * gain, op))) : 0;
-            }
+namespace {
+/// Row y of `img` times `gain` as RGB triples (a single channel as grey, missing channels 0).
+void linearRow(const ImageView& img, int y, float gain, std::vector<float>& row) {
+    const int W = img.width(), C = img.channels();
+    row.assign(size_t(W) * 3, 0.f);
+    for (int x = 0; x < W; ++x)
+        for (int c = 0; c < 3; ++c) {
+            const int src = C == 1 ? 0 : c;
+            if (src < C) row[size_t(x) * 3 + size_t(c)] = img.at(src, x, y) * gain;
         }
+}
+
+/// The 8-bit display pixels of `img`: ids as colours; colour through `view` or `op` and sRGB.
+std::vector<uint8_t> displayPixels(const ImageView& img, float gain, ToneMap op,
+                                   const OcioView* view) {
+    const int W = img.width(), H = img.height();
+    std::vector<uint8_t> rgb(size_t(W) * size_t(H) * 3);
+    std::vector<float> row;
+    for (int y = 0; y < H; ++y) {
+        uint8_t* p = &rgb[size_t(y) * size_t(W) * 3];
+        if (img.format == Format::Int32) {
+            for (int x = 0; x < W; ++x) idColour(img.atInt(x, y), p + size_t(x) * 3);
+            continue;
+        }
+        linearRow(img, y, gain, row);
+        if (view) {
+            for (float& v : row) v = std::isnan(v) ? 0.f : v;  // OCIO passes NaN through
+            view->apply(row.data(), size_t(W));
+            for (size_t i = 0; i < row.size(); ++i) p[i] = to8(std::isnan(row[i]) ? 0.f : row[i]);
+        } else {
+            for (size_t i = 0; i < row.size(); ++i) p[i] = to8(srgbEncode(toneMap(row[i], op)));
+        }
+    }
+    return rgb;
+}
+}  // namespace
+
+void writePngPreview(const ImageView& img, const std::string& path, float exposureStops, ToneMap op,
+                     const OcioView* view) {
+    const int W = img.width(), H = img.height();
+    std::vector<uint8_t> rgb = displayPixels(img, std::exp2(exposureStops), op, view);
 
     errno = 0;  // what the failing open or write sets is the reason the user is given
     std::FILE* f = std::fopen(path.c_str(), "wb");

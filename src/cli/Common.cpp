@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <iostream>
+#include <map>
 #include <nlohmann/json.hpp>
 
 #include "DefaultScene.h"
@@ -52,11 +53,21 @@ fs::path shippedGraph(const std::string& name) {
     return fs::path(KESTREL_SOURCE_GRAPH_DIR) / name;
 }
 
+namespace {
+void keepPassesOnWriters(GraphDesc& g, const Registry& reg) {
+    for (const auto& n : std::vector<PassNode>(g.passes))
+        if (const PassType* t = reg.find(n.type);
+            t && isSink(*t) && t->desc.findParam("keepPasses"))
+            applyOverride(g, n.name + ".keepPasses=true", &reg);
+}
+}  // namespace
+
 GraphDesc prepareGraph(const GraphOptions& o, const Registry& reg) {
     fs::path path = o.graph.empty() ? shippedGraph("svgf.json") : fs::path(o.graph);
     GraphDesc g = loadGraphFile(path);
     graphpaths::assignInputs(g, reg, o.inputs);
     graphpaths::assignOutputs(g, reg, o.outputs);
+    if (o.keepPasses) keepPassesOnWriters(g, reg);  // before --set, which may turn one off
     for (const auto& s : o.sets) applyOverride(g, s, &reg);
     for (const auto& n : g.passes) {
         const PassType* t = reg.find(n.type);
@@ -108,28 +119,27 @@ int exitTwoOnUsageError(const std::function<int()>& fn) {
 
 std::string markSinkInput(GraphDesc& g, const Registry& reg, bool detach) {
     std::vector<std::string> sinks;
+    std::map<std::string, std::string> firstInput;  // sink -> its first required input (the image)
     for (const auto& p : g.passes)
-        if (const PassType* t = reg.find(p.type); t && t->desc.sink) sinks.push_back(p.name);
+        if (const PassType* t = reg.find(p.type); t && t->desc.sink) {
+            sinks.push_back(p.name);
+            for (const auto& port : t->desc.ports)
+                if (port.kind == PortKind::Input && !port.optional) {
+                    firstInput[p.name] = port.name;
+                    break;
+                }
+        }
     auto isSinkName = [&](const std::string& n) {
         return std::find(sinks.begin(), sinks.end(), n) != sinks.end();
     };
-    // The edge into a writer's required input (its colour), not the first edge into it: a graph
-    // that extends another and rewires the colour lists the optional alpha edge first.
-    auto required = [&](const EdgeDesc& e) {
-        for (const auto& p : g.passes)
-            if (p.name == e.toPass)
-                for (const auto& port : reg.find(p.type)->desc.ports)
-                    if (port.name == e.toPort)
-                        return port.kind == PortKind::Input && !port.optional;
-        return false;
-    };
-    std::string marked, fallback;
+    // The edge into the first writer's image, not one into an optional input such as its alpha
+    // (a graph that extends another may list that edge first).
+    std::string marked;
     for (const auto& e : g.edges)
-        if (isSinkName(e.toPass)) {
-            if (marked.empty() && required(e)) marked = e.fromPass + "." + e.fromPort;
-            if (fallback.empty()) fallback = e.fromPass + "." + e.fromPort;
-        }
-    if (marked.empty()) marked = fallback;
+        if (isSinkName(e.toPass) && marked.empty() && firstInput[e.toPass] == e.toPort)
+            marked = e.fromPass + "." + e.fromPort;
+    for (const auto& e : g.edges)  // writers with optional inputs only: the first edge
+        if (isSinkName(e.toPass) && marked.empty()) marked = e.fromPass + "." + e.fromPort;
     if (marked.empty())
         throw Error("graph '" + g.name + "' has no writer whose input could be measured");
     if (detach) {

@@ -42,6 +42,7 @@ struct GraphOptions {
     std::vector<std::string> outputs;  ///< PATTERN or name=PATTERN
     std::vector<std::string> sets;     ///< pass.param=value
     std::string outDir = "kestrel-out";
+    bool keepPasses = false;  ///< --keep-passes: keepPasses=true on every writer that has it
 };
 
 /// Loads the graph, applies --input/--output/--set. A source left without a path runs on the

@@ -352,6 +352,9 @@ void addRunCommand(CLI::App& app, Action& action) {
         ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
     cmd->add_option("--threads", o->threads, "Worker threads (default: all cores)")
         ->check(CLI::Range(0, 1024));
+    cmd->add_flag("--keep-passes", o->graph.keepPasses,
+                  "Also write the input's other channels (AOVs) and header attributes into each "
+                  "output EXR (every writer's keepPasses=true)");
     cmd->add_flag("--resume", o->resume,
                   "Skip frames whose output exists, warming history up first");
     cmd->add_option("--warmup", o->warmup, "Run N frames before the range without writing them")

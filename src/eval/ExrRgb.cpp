@@ -8,6 +8,7 @@
 #include <kestrel/InputFiles.h>
 
 #include <algorithm>
+#include <cctype>
 #include <map>
 #include <set>
 #include <system_error>
@@ -21,6 +22,14 @@ std::string joinQuoted(const std::vector<std::string>& names, size_t maxCount = 
         s += (i ? ", " : "") + (names[i].empty() ? std::string("(plain R,G,B)") : names[i]);
     if (names.size() > maxCount) s += ", ... (" + std::to_string(names.size()) + " in all)";
     return s;
+}
+
+/// Whether the file name ends in .exr, in any case (everything else goes to OpenImageIO).
+bool isExrName(const std::filesystem::path& path) {
+    std::string ext = path.extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return std::tolower(c); });
+    return ext == ".exr";
 }
 
 std::string channelName(const std::string& prefix, char c) {
@@ -78,6 +87,7 @@ Image readExrRgb(const std::filesystem::path& path, std::string_view layer) {
     } catch (const Error& e) {
         throw FrameError(e.what());
     }
+    if (!isExrName(path)) return readImageRgb(path);
     try {
         Imf::InputFile file(path.c_str());
         const Imf::Header& header = file.header();

@@ -3,7 +3,10 @@
 #include <eval/ExrRgb.h>
 #include <gtest/gtest.h>
 #include <kestrel/Error.h>
+#include <png.h>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -126,4 +129,66 @@ TEST(ExrRgb, ReadsRealRendererFiles) {
     Image beauty = readExrRgb(games);  // plain R, G, B
     EXPECT_EQ(beauty.width(), 512);
     EXPECT_EQ(beauty.height(), 512);
+}
+
+namespace {
+/// A Radiance HDR (RGBE, uncompressed scan lines) of w x h pixels all equal to `rgb`.
+void writeHdr(const fs::path& path, int w, int h, const float rgb[3]) {
+    std::ofstream f(path, std::ios::binary);
+    f << "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y " << h << " +X " << w << "\n";
+    int e = 0;
+    const float m = std::frexp(std::max({rgb[0], rgb[1], rgb[2]}), &e);
+    const float scale = m * 256.f / std::max({rgb[0], rgb[1], rgb[2]});
+    const unsigned char px[4] = {(unsigned char)(rgb[0] * scale), (unsigned char)(rgb[1] * scale),
+                                 (unsigned char)(rgb[2] * scale), (unsigned char)(e + 128)};
+    for (int i = 0; i < w * h; ++i) f.write(reinterpret_cast<const char*>(px), 4);
+}
+
+/// An 8-bit RGB PNG of w x h pixels all equal to `value`.
+void writePng(const fs::path& path, int w, int h, unsigned char value) {
+    png_image image{};
+    image.version = PNG_IMAGE_VERSION;
+    image.width = png_uint_32(w);
+    image.height = png_uint_32(h);
+    image.format = PNG_FORMAT_RGB;
+    const std::vector<unsigned char> pixels(size_t(w) * size_t(h) * 3, value);
+    ASSERT_TRUE(png_image_write_to_file(&image, path.c_str(), 0, pixels.data(), 0, nullptr));
+}
+
+/// Whether this build reads files other than EXR (OpenImageIO).
+bool readsOtherImages(const fs::path& any) {
+    try {
+        readImageRgb(any);
+        return true;
+    } catch (const kestrel::Error& e) {
+        return std::string(e.what()).find("no OpenImageIO") == std::string::npos;
+    }
+}
+}  // namespace
+
+TEST(ImageRgb, RadianceHdrReferenceIsReadLinear) {
+    const fs::path dir = tempDir();
+    const float rgb[3] = {1.f, 0.5f, 2.f};
+    writeHdr(dir / "ref.0001.hdr", 4, 3, rgb);
+    if (!readsOtherImages(dir / "ref.0001.hdr")) GTEST_SKIP() << "built without OpenImageIO";
+    const Image img = readExrRgb(dir / "ref.0001.hdr");
+    ASSERT_EQ(img.width(), 4);
+    ASSERT_EQ(img.height(), 3);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(img.at(c, 3, 2), rgb[c], 0.01f * rgb[c]) << c;
+}
+
+TEST(ImageRgb, PngReferenceIsDecodedFromSrgb) {
+    const fs::path dir = tempDir();
+    writePng(dir / "ref.png", 5, 2, 188);
+    if (!readsOtherImages(dir / "ref.png")) GTEST_SKIP() << "built without OpenImageIO";
+    const Image img = readExrRgb(dir / "ref.png");
+    ASSERT_EQ(img.width(), 5);
+    // sRGB 188/255 is linear 0.5029.
+    EXPECT_NEAR(img.at(1, 4, 1), std::pow((188.f / 255.f + 0.055f) / 1.055f, 2.4f), 1e-4f);
+}
+
+TEST(ImageRgb, UnreadableImageNamesTheFile) {
+    const fs::path dir = tempDir();
+    std::ofstream(dir / "ref.png") << "not a png";
+    expectErrorContaining([&] { readExrRgb(dir / "ref.png"); }, {"ref.png"});
 }

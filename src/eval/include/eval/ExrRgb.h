@@ -19,8 +19,14 @@ namespace kestrel::eval {
 std::string chooseRgbLayer(const std::vector<std::string>& channelNames,
                            std::string_view layer = {});
 
-/// Reads R, G, B (half, float or uint channels, converted to float). Throws kestrel::FrameError
-/// naming the file when it is missing, unreadable or corrupt, or has no (unique) RGB layer.
+/// Reads R, G, B (half, float or uint channels, converted to float). A file whose name does not
+/// end in .exr is read by readImageRgb (`layer` unused). Throws kestrel::FrameError naming the
+/// file when it is missing, unreadable or corrupt, or has no (unique) RGB layer.
 Image readExrRgb(const std::filesystem::path& path, std::string_view layer = {});
+
+/// A PNG, Radiance HDR, TIFF or other file OpenImageIO reads, as linear RGB: integer files are
+/// taken as sRGB-encoded and decoded, float files as linear; a grey image gives R = G = B.
+/// Throws kestrel::FrameError naming the file (also when this build has no OpenImageIO).
+Image readImageRgb(const std::filesystem::path& path);
 
 }  // namespace kestrel::eval
