@@ -6,6 +6,7 @@
 #include <pybind11/stl.h>
 
 #include <algorithm>
+#include <nlohmann/json.hpp>
 
 #include "Bindings.h"
 
@@ -149,6 +150,35 @@ py::list passTypes() {
     return rows;
 }
 
+/// The graph as a Kestrel JSON graph file (overrides applied, history flags and marked outputs
+/// kept): `kestrel run` and load_graph read it back as the same graph. A graph with group
+/// instances is refused: its passes are named by instance path ("diffuse.atrous0"), which a file
+/// cannot declare (a file names the instance and its group); save the file it was loaded from,
+/// with its overrides as --set.
+std::string graphJson(const GraphDesc& g) {
+    if (!g.instances.empty())
+        throw Error(
+            "to_json: graph '" + g.name + "' has group instances ('" + g.instances.front().path +
+            "', ...): write the file it was loaded from and its overrides (Graph.overrides) "
+            "as --set instead");
+    nlohmann::json passes = nlohmann::json::array(), edges = nlohmann::json::array();
+    for (const auto& p : g.passes) {
+        nlohmann::json pass = {{"name", p.name}, {"type", p.type}};
+        const auto params = nlohmann::json::parse(p.paramsJson.empty() ? "{}" : p.paramsJson);
+        if (!params.empty()) pass["params"] = params;
+        passes.push_back(std::move(pass));
+    }
+    for (const auto& e : g.edges) {
+        nlohmann::json edge = {{"from", e.fromPass + "." + e.fromPort},
+                               {"to", e.toPass + "." + e.toPort}};
+        if (e.history) edge["history"] = true;
+        edges.push_back(std::move(edge));
+    }
+    nlohmann::json doc = {{"kestrel", 1}, {"name", g.name}, {"passes", passes}, {"edges", edges}};
+    if (!g.outputs.empty()) doc["outputs"] = g.outputs;
+    return doc.dump(2) + "\n";
+}
+
 /// Falcor's shape: a graph built in code, pass by pass and edge by edge.
 std::shared_ptr<GraphObject> emptyGraph(const std::string& name) {
     auto g = std::make_shared<GraphObject>();
@@ -221,6 +251,10 @@ void bindGraphClass(py::module_& m) {
                     g.desc.outputs.push_back(passPort);
             },
             py::arg("pass_port"), "Keeps 'pass.port' to the end of each frame, readable by a run")
+        .def(
+            "to_json", [](const GraphObject& g) { return graphJson(g.desc); },
+            "The graph as a JSON graph file (groups expanded, overrides applied): save it to run "
+            "it with `kestrel run`, or load_graph it back")
         .def("remove_pass", &removePass, py::arg("name"),
              "Removes a pass, its edges and outputs (e.g. the writer, to keep results in memory)")
         .def(
