@@ -5,7 +5,6 @@
 #include <atomic>
 #include <cmath>
 #include <cstddef>
-#include <string_view>
 
 namespace kestrel::exr {
 
@@ -18,18 +17,6 @@ constexpr float kAbsurd = 1e30f;
 // 1.5e7 at 1000 W/m^2). Below this a value is damage: -1e10 in the colour of one frame left
 // -1e7 in the history nine frames later.
 constexpr float kMostNegativeLight = -1e8f;
-
-/// The lowest valid value of an output: albedos are reflectances, never negative (a -1e10
-/// albedo on a pixel without history passed, and the light demodulated by it spread); light
-/// down to kMostNegativeLight; any other output (vectors, positions, depth, ids) down to
-/// -kAbsurd.
-inline float lowestValid(std::string_view output) {
-    if (output.find("lbedo") != std::string_view::npos) return 0.f;
-    for (std::string_view light :
-         {"color", "emission", "direct", "indirect", "diffuse", "specular"})
-        if (output == light) return kMostNegativeLight;
-    return -kAbsurd;
-}
 
 /// Replaces NaN, infinite and absurd values (outside [lowest, kAbsurd]) of [v, v + n) by
 /// `fill`; how many.

@@ -50,23 +50,26 @@ const Recipe* Plan::find(const std::string& output) const {
 
 const std::vector<OutputSpec>& loaderOutputs() {
     static const std::vector<OutputSpec> outputs = {
-        {"color", Format::Float3, 0.f, "noisy radiance, linear HDR"},
-        {"albedo", Format::Float3, 0.f, "surface albedo for demodulation"},
+        {"color", Format::Float3, 0.f, "noisy radiance, linear HDR", kMostNegativeLight},
+        {"albedo", Format::Float3, 0.f, "surface albedo for demodulation", 0.f},
         {"jitteredAlbedo", Format::Float3, 0.f,
          "the albedo where the render is anti-aliased (a pixel filter wider than a pixel: one "
          "sample of the footprint per frame, to be averaged over frames); absent when the render "
-         "is point-sampled"},
-        {"emission", Format::Float3, 0.f, "emitted radiance (incl. environment)"},
-        {"direct", Format::Float3, 0.f, "direct part of color (radiance)"},
-        {"indirect", Format::Float3, 0.f, "indirect part of color (radiance)"},
-        {"diffuse", Format::Float3, 0.f, "diffuse part of color (radiance)"},
-        {"diffuseAlbedo", Format::Float3, 0.f, "albedo of the diffuse part"},
+         "is point-sampled",
+         0.f},
+        {"emission", Format::Float3, 0.f, "emitted radiance (incl. environment)",
+         kMostNegativeLight},
+        {"direct", Format::Float3, 0.f, "direct part of color (radiance)", kMostNegativeLight},
+        {"indirect", Format::Float3, 0.f, "indirect part of color (radiance)", kMostNegativeLight},
+        {"diffuse", Format::Float3, 0.f, "diffuse part of color (radiance)", kMostNegativeLight},
+        {"diffuseAlbedo", Format::Float3, 0.f, "albedo of the diffuse part", 0.f},
         {"jitteredDiffuseAlbedo", Format::Float3, 0.f,
-         "diffuseAlbedo where the render is anti-aliased (as jitteredAlbedo)"},
-        {"specular", Format::Float3, 0.f, "specular/glossy part of color (radiance)"},
-        {"specularAlbedo", Format::Float3, 0.f, "albedo of the specular part"},
+         "diffuseAlbedo where the render is anti-aliased (as jitteredAlbedo)", 0.f},
+        {"specular", Format::Float3, 0.f, "specular/glossy part of color (radiance)",
+         kMostNegativeLight},
+        {"specularAlbedo", Format::Float3, 0.f, "albedo of the specular part", 0.f},
         {"jitteredSpecularAlbedo", Format::Float3, 0.f,
-         "specularAlbedo where the render is anti-aliased (as jitteredAlbedo)"},
+         "specularAlbedo where the render is anti-aliased (as jitteredAlbedo)", 0.f},
         {"normal", Format::Float3, 0.f, "world-space unit shading normal, 0 on background"},
         {"depth", Format::Float, kBackgroundDepth, "linear view depth, 1e10 on background"},
         {"position", Format::Float3, 0.f, "world-space position"},
@@ -164,6 +167,7 @@ struct Builder {
             r.output = o.name;
             r.format = o.format;
             r.fill = o.fill;
+            r.lowest = o.lowest;
             plan.recipes.push_back(r);
         }
     }

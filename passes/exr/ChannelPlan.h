@@ -10,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "Absurd.h"
 #include "kestrel/Format.h"
 
 namespace kestrel::exr {
@@ -53,6 +54,7 @@ struct Recipe {
     std::optional<Rest> rest;
     float scale[4] = {1, 1, 1, 1};  ///< per channel after summing (Blender motion y: -1)
     float fill = 0.f;               ///< where the file has no pixel (outside the data window)
+    float lowest = -kAbsurd;        ///< below it a value is damage, replaced by fill (Absurd.h)
     std::optional<ChannelRef> backgroundMask;  ///< GAMES202 depth: where this < -0.5, depth = 1e10
     IdRule idRule = IdRule::Round;             ///< Int32 outputs
     bool zeroIsBackground = false;  ///< depth: values <= 0 (or NaN) are background (1e10)
@@ -99,6 +101,9 @@ struct OutputSpec {
     Format format;
     float fill;
     const char* description;
+    /// The lowest valid value (Absurd.h): 0 for albedos (reflectances), kMostNegativeLight for
+    /// light, -kAbsurd for vectors, positions, depth and ids.
+    float lowest = -kAbsurd;
 };
 const std::vector<OutputSpec>& loaderOutputs();
 /// The albedo a jittered* output repeats where the render is anti-aliased ("jitteredAlbedo" ->

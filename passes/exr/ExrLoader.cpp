@@ -1202,7 +1202,7 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
     std::map<ChannelRef, float> direct;  // -> the lowest valid value (its output's)
     for (const Recipe* r : active)
         if (r->isDirect() && !r->fromDepth && !r->reflectionOf)
-            for (const auto& c : r->terms[0][0]) direct.emplace(c, lowestValid(r->output));
+            for (const auto& c : r->terms[0][0]) direct.emplace(c, r->lowest);
     std::map<ChannelRef, std::atomic<size_t>> replaced;
     for (const auto& [ref, lowest] : direct)
         replaced[ref];  // no insertion while decoding threads add
@@ -1308,7 +1308,7 @@ void ExrLoader::execute(FrameContext& ctx, PassIO& io) {
                 const int C = r->format == Format::Int32 ? 1 : channelCount(r->format);
                 for (int c = 0; c < C; ++c)
                     if (const size_t n = replaceAbsurd(asFloats(io.output(r->output), c) + b, e - b,
-                                                       r->fill, lowestValid(r->output)))
+                                                       r->fill, r->lowest))
                         compositeReplaced[k][size_t(c)] += n;
             }
             for (const Deferred& d : deferred)
