@@ -118,28 +118,28 @@ int exitTwoOnUsageError(const std::function<int()>& fn) {
 }
 
 std::string markSinkInput(GraphDesc& g, const Registry& reg, bool detach) {
-    std::vector<std::string> sinks;
-    std::map<std::string, std::string> firstInput;  // sink -> its first required input (the image)
+    std::map<std::string, std::string> sinks;  // writer -> its first required input (its image)
     for (const auto& p : g.passes)
         if (const PassType* t = reg.find(p.type); t && t->desc.sink) {
-            sinks.push_back(p.name);
+            std::string& image = sinks[p.name];
             for (const auto& port : t->desc.ports)
                 if (port.kind == PortKind::Input && !port.optional) {
-                    firstInput[p.name] = port.name;
+                    image = port.name;
                     break;
                 }
         }
-    auto isSinkName = [&](const std::string& n) {
-        return std::find(sinks.begin(), sinks.end(), n) != sinks.end();
-    };
+    auto isSinkName = [&](const std::string& n) { return sinks.count(n) > 0; };
     // The edge into the first writer's image, not one into an optional input such as its alpha
-    // (a graph that extends another may list that edge first).
-    std::string marked;
+    // (a graph that extends another may list that edge first); for writers with optional inputs
+    // only, the first edge into one.
+    std::string marked, fallback;
     for (const auto& e : g.edges)
-        if (isSinkName(e.toPass) && marked.empty() && firstInput[e.toPass] == e.toPort)
-            marked = e.fromPass + "." + e.fromPort;
-    for (const auto& e : g.edges)  // writers with optional inputs only: the first edge
-        if (isSinkName(e.toPass) && marked.empty()) marked = e.fromPass + "." + e.fromPort;
+        if (isSinkName(e.toPass)) {
+            if (marked.empty() && sinks[e.toPass] == e.toPort)
+                marked = e.fromPass + "." + e.fromPort;
+            if (fallback.empty()) fallback = e.fromPass + "." + e.fromPort;
+        }
+    if (marked.empty()) marked = fallback;
     if (marked.empty())
         throw Error("graph '" + g.name + "' has no writer whose input could be measured");
     if (detach) {

@@ -103,8 +103,6 @@ protected:
         });
     }
 
-    PassDesc& descForExtras() { return desc_; }  ///< fuseOn, sink: the untyped rest
-
 private:
     PassDesc desc_;
     std::vector<std::function<void(Params&, const ParamValues&)>> readers_;
