@@ -12,6 +12,8 @@
 #include <type_traits>
 #include <vector>
 
+#include "FireflySpread.h"
+
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "TemporalAccumulationPass.cpp"
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
@@ -55,6 +57,8 @@ struct Row {
     const float *lu, *lc, *ld;    ///< luminance of rows y-1, y, y+1 (row y outside the image)
     bool up, down;                ///< whether rows y-1, y+1 exist
     float *o0, *o1, *o2, *om0, *om1, *oh, *ov;
+    float *e0, *e1, *e2;  ///< the clamped excess, times its weight (FireflySpread.h)
+    float* eb;            ///< the clamp's bound, times the same weight
 };
 
 // The per-pixel formula after the firefly neighbourhood statistics: s1, s2 = sum of the n
@@ -93,6 +97,14 @@ __attribute__((always_inline)) inline void pixel(Params p, const Row& r, int x, 
     bound = useM ? std::max(bound, hb) : bound;
     const bool clamp = (k > 0.f) & (l > 0.f) & (l > bound);
     const float bz = std::max(bound, 0.f), s = bz / l;
+    // What the clamp takes off, as it would have entered the accumulation; kept only where the
+    // history is valid (a sample with none is its own pixel's whole colour: spreading it
+    // restored the noise the clamp removed, 0.1 dB on the zoo street's flat walls).
+    const float ew = (clamp & useC) ? (1.f - s) * ac : 0.f;
+    r.e0[x] = c0 * ew;
+    r.e1[x] = c1 * ew;
+    r.e2[x] = c2 * ew;
+    r.eb[x] = (clamp & useC) ? bz * ac : 0.f;
     c0 = clamp ? c0 * s : c0;
     c1 = clamp ? c1 * s : c1;
     c2 = clamp ? c2 * s : c2;
@@ -175,7 +187,7 @@ thread_local std::vector<float> tScratch;
 
 /// The pass for this target (its parameters as arguments).
 void executeOnTarget(FrameContext& ctx, PassIO& io, float alpha_, float momentsAlpha_,
-                     float maxHistory_, float fireflySigma_) {
+                     float maxHistory_, float fireflySigma_, firefly::Excess* excess) {
     const int w = ctx.extent.width, h = ctx.extent.height;
     const ImageView& color = io.input("color");
     const bool hasHist = io.hasInput("prevHistoryLength");
@@ -194,12 +206,18 @@ void executeOnTarget(FrameContext& ctx, PassIO& io, float alpha_, float momentsA
         // Scratch rows: 3 luminance (ring), 1 zeros (inputs not fed: history length 0 makes
         // every pixel history-less, colour and moments are then not used), 4 output sinks.
         std::vector<float>& sc = tScratch;
-        if (sc.size() < size_t(w) * 8) sc.resize(size_t(w) * 8);
+        if (sc.size() < size_t(w) * 12) sc.resize(size_t(w) * 12);
         auto lumRow = [&](int y) { return sc.data() + size_t(y % 3) * w; };
         float* zeros = sc.data() + size_t(3) * w;
         std::fill(zeros, zeros + w, 0.f);
-        float* sink[4] = {zeros + w, zeros + 2 * size_t(w), zeros + 3 * size_t(w),
-                          zeros + 4 * size_t(w)};
+        float* sink[8] = {zeros + w,
+                          zeros + 2 * size_t(w),
+                          zeros + 3 * size_t(w),
+                          zeros + 4 * size_t(w),
+                          zeros + 5 * size_t(w),
+                          zeros + 6 * size_t(w),
+                          zeros + 7 * size_t(w),
+                          zeros + 8 * size_t(w)};
         auto convert = [&](int y) {
             luminanceRow(w, color.row(0, y), color.row(1, y), color.row(2, y), lumRow(y));
         };
@@ -229,6 +247,11 @@ void executeOnTarget(FrameContext& ctx, PassIO& io, float alpha_, float momentsA
             r.om1 = outM ? outM->row(1, y) : sink[1];
             r.oh = outH ? outH->row(0, y) : sink[2];
             r.ov = outV ? outV->row(0, y) : sink[3];
+            const size_t at = size_t(y) * size_t(w);
+            r.e0 = excess ? excess->plane(0) + at : sink[4];
+            r.e1 = excess ? excess->plane(1) + at : sink[5];
+            r.e2 = excess ? excess->plane(2) + at : sink[6];
+            r.eb = excess ? excess->plane(3) + at : sink[7];
             auto run = [&](auto hasC, auto hasM) {
                 constexpr bool C = decltype(hasC)::value, M = decltype(hasM)::value;
                 if (y == 0 || y == h - 1 || w < 3) {
@@ -282,6 +305,20 @@ PassDesc TemporalAccumulationPass::describe() {
         .paramFloat("alpha", 0.2, 0.0, 1.0, "minimum blend weight of the current colour")
         .paramFloat("momentsAlpha", 0.2, 0.0, 1.0, "minimum blend weight of the current moments")
         .paramFloat("maxHistoryLength", 32.0, 1.0, 1e6, "cap of the history length")
+        .optionalInput("depth", Format::Float,
+                       "linear depth: with normal, the surface the firefly clamp's excess may be "
+                       "spread over (fireflySpread)")
+        .optionalInput("normal", Format::Float3, "world normal (see depth)")
+        .optionalInput("objectId", Format::Int32, "object id: the excess stays on its object")
+        .paramInt(
+            "fireflySpread", 0, 0, firefly::kMaxRadius,
+            "radius in px over which what the firefly clamp takes off a sample with a "
+            "history is spread on the same surface (depth, normal, object id) instead of "
+            "dropped, in the share fireflyFullShare sets (0 = dropped; needs depth and normal)")
+        .paramFloat("fireflyFullShare", 0.2, 1e-6, 1.0,
+                    "the clamped share of a window's light at which all the excess is spread; "
+                    "below it, the spread part falls linearly (a noise tail is dropped, light "
+                    "the 1-spp frames reach only rarely is kept)")
         .paramFloat("fireflySigma", 3.0, 0.0, 1e6,
                     "firefly clamp: a sample brighter than mean + k*stddev of its 8 neighbours AND"
                     " of its own history is scaled down to that bound, a negative sample below"
@@ -293,10 +330,19 @@ TemporalAccumulationPass::TemporalAccumulationPass(const ParamValues& p)
     : alpha_(p.getFloat("alpha")),
       momentsAlpha_(p.getFloat("momentsAlpha")),
       maxHistory_(p.getFloat("maxHistoryLength")),
-      fireflySigma_(p.getFloat("fireflySigma")) {}
+      fireflySigma_(p.getFloat("fireflySigma")),
+      spread_{int(p.getInt("fireflySpread")), firefly::kMaxBoundsPerPixel,
+              p.getFloat("fireflyFullShare")} {}
 
 void TemporalAccumulationPass::execute(FrameContext& ctx, PassIO& io) {
+    const bool spread = spread_.radius > 0 && fireflySigma_ > 0.f && io.hasInput("depth") &&
+                        io.hasInput("normal") && io.hasInput("prevHistoryLength");
+    if (spread) excess_.reset(ctx.extent.width, ctx.extent.height);
     HWY_DYNAMIC_DISPATCH(executeOnTarget)
-    (ctx, io, alpha_, momentsAlpha_, maxHistory_, fireflySigma_);
+    (ctx, io, alpha_, momentsAlpha_, maxHistory_, fireflySigma_, spread ? &excess_ : nullptr);
+    if (!spread) return;
+    const firefly::Surface surface{&io.input("depth"), &io.input("normal"),
+                                   io.hasInput("objectId") ? &io.input("objectId") : nullptr};
+    firefly::spreadExcess(ctx, excess_, surface, spread_, io.output("color"));
 }
 #endif  // HWY_ONCE

@@ -5,6 +5,8 @@
 // variance max(0, m2 - m1^2) drives the A-Trous luminance weight.
 #include <kestrel/Kestrel.h>
 
+#include "FireflySpread.h"
+
 class TemporalAccumulationPass final : public kestrel::Pass {
 public:
     static kestrel::PassDesc describe();
@@ -13,4 +15,6 @@ public:
 
 private:
     float alpha_, momentsAlpha_, maxHistory_, fireflySigma_;
+    kestrel::firefly::SpreadSettings spread_;
+    kestrel::firefly::Excess excess_;  ///< this frame's clamped excess (only when spreading)
 };

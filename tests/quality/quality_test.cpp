@@ -52,17 +52,19 @@ constexpr double kMseSlack = eval::RegionStats::kMseSlack;
 // Blender sequences, 1.2 dB on fireflies. A black sky drops the street 8 dB below its input.
 constexpr double kMinGainDb = 3.0;
 // fireflies: the lamp's light reaches the 1-spp frames only as rare samples thousands of times
-// too bright. TemporalAccumulation clamps them before they enter the history (relMSE 47.9 ->
-// 0.08; unclamped 2.2, 20.7 dB), so 12 frames cannot carry the light they hold and the lit
-// ground stays darker than the reference: on display values that is a 1.2 dB gain. Its bar
-// is 1 dB; every region must still improve.
+// too bright. TemporalAccumulation clamps them before they enter the history; where the clamp
+// would take off a large share of the light around them, the svgf chains spread that energy over
+// the same surface instead of dropping it (fireflySpread): 2.9 dB gained on display values where
+// dropping it gained 1.3 (the lit ground stayed dark). Its bar is 2.5 dB; every region must
+// still improve.
 // The GAMES202 graphs are single-frame colour filters with clamped accumulation: measured gains
 // of 2.7 (atrous on the zoo street) to 16 dB; their bar is 1 dB, which a black sky still fails.
 bool isGames202(const std::string& graph) {
     return graph.rfind("games202-", 0) == 0;
 }
 double minGainDb(const std::string& graph, const std::string& scene) {
-    return scene == "fireflies" || isGames202(graph) ? 1.0 : kMinGainDb;
+    if (isGames202(graph)) return 1.0;
+    return scene == "fireflies" ? 2.5 : kMinGainDb;
 }
 
 constexpr int64_t kFirstFrame = 1, kLastFrame = 12;

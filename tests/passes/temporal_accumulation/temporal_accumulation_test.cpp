@@ -176,3 +176,160 @@ TEST(TemporalAccumulation, IdenticalWithOneAndTwoThreads) {
     for (const char* o : {"color", "moments", "historyLength", "variance"})
         EXPECT_TRUE(identical(a.out(o), b.out(o))) << o;
 }
+
+// ---- The firefly clamp's excess spread over the same surface (FireflySpread.h) ----
+namespace {
+/// One frame with a valid history and a G-buffer: a plane facing the camera at depth 2 (ids
+/// from `id`), optionally with NaN/Inf planted in depth and normal.
+PassHarness spreadStep(
+    const Image& cur, const History& hist, std::map<std::string, ParamValue> p, int threads = 1,
+    const std::function<int(int, int)>& id = [](int, int) { return 1; },
+    bool damagedGbuffer = false) {
+    const int w = cur.extent().width, h = cur.extent().height;
+    auto hs = PassHarness::make<TemporalAccumulationPass>(cur.extent(), p, threads);
+    static Image depth, normal, object;
+    depth = scalar(w, h, [](int, int) { return 2.f; });
+    normal = normals(w, h, 0.f, 0.f, 1.f);
+    object = ids(w, h, id);
+    if (damagedGbuffer) {
+        depth.at(0, 1, 1) = NAN;
+        depth.at(0, w - 2, h - 2) = INFINITY;
+        normal.at(0, 2, 1) = NAN;
+        normal.at(2, w / 2, h / 2) = -INFINITY;
+    }
+    hs.bind("color", cur);
+    hs.bind("prevColor", hist.color);
+    hs.bind("prevMoments", hist.moments);
+    hs.bind("prevHistoryLength", hist.length);
+    hs.bind("depth", depth);
+    hs.bind("normal", normal);
+    hs.bind("objectId", object);
+    hs.run();
+    return hs;
+}
+/// A dark plane with a long, settled history: a sample of 1000 at (x, y) is a firefly.
+History darkHistory(int w, int h) {
+    History hist{constant(w, h, Format::Float3, 0.01f), constant(w, h, Format::Float2, 0.f),
+                 constant(w, h, Format::Float, 8.f)};
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            hist.moments.at(0, x, y) = 0.01f;
+            hist.moments.at(1, x, y) = 0.0001f;
+        }
+    return hist;
+}
+double sum(const Image& im, int c) {
+    double s = 0.0;
+    for (int y = 0; y < im.extent().height; ++y)
+        for (int x = 0; x < im.extent().width; ++x) s += im.at(c, x, y);
+    return s;
+}
+}  // namespace
+
+// A lamp the 1-spp frames reach only by rare samples: the clamp keeps the firefly out of its
+// pixel, and with fireflySpread its energy lands on the surface around it instead of being
+// lost, so the frame's total is what it would be without the clamp.
+TEST(TemporalAccumulation, FireflySpreadKeepsTheClampedEnergy) {
+    const int w = 15, h = 15;
+    Image cur = constant(w, h, Format::Float3, 0.01f);
+    for (int c = 0; c < 3; ++c) cur.at(c, 7, 7) = 0.5f;  // 50x its bound (0.01): ~1 per pixel
+    const History hist = darkHistory(w, h);
+    auto unclamped = spreadStep(cur, hist, {{"fireflySigma", 0.0}});
+    auto dropped = spreadStep(cur, hist, {{"fireflySpread", 0}});
+    // fireflyFullShare 0.01: all of it is kept (it is 17% of its window's light)
+    auto spread = spreadStep(cur, hist, {{"fireflySpread", 3}, {"fireflyFullShare", 0.01}});
+    const double all = sum(unclamped.out("color"), 0);
+    EXPECT_GT(all - sum(dropped.out("color"), 0), 0.09);  // SVGF's clamp drops 0.2 * 0.49
+    EXPECT_NEAR(sum(spread.out("color"), 0), all, 1e-4 * all);
+    // Spread evenly over the 7x7 window, not left in the firefly's own pixel.
+    const float centre = spread.out("color").at(0, 7, 7),
+                inWindow = spread.out("color").at(0, 4, 10);
+    EXPECT_NEAR(centre - dropped.out("color").at(0, 7, 7), inWindow - 0.01f, 1e-5f);
+    EXPECT_GT(inWindow, 0.01f + 1e-3f);
+    EXPECT_FLOAT_EQ(spread.out("color").at(0, 3, 7), dropped.out("color").at(0, 3, 7));  // outside
+}
+
+// The excess stays on its object: a firefly beside another object's edge lights nothing of it.
+TEST(TemporalAccumulation, FireflySpreadStaysOnItsObject) {
+    const int w = 15, h = 9;
+    Image cur = constant(w, h, Format::Float3, 0.01f);
+    for (int c = 0; c < 3; ++c) cur.at(c, 6, 4) = 0.5f;
+    const History hist = darkHistory(w, h);
+    auto split = [](int x, int) { return x < 7 ? 1 : 2; };
+    auto dropped = spreadStep(cur, hist, {{"fireflySpread", 0}}, 1, split);
+    auto spread = spreadStep(cur, hist, {{"fireflySpread", 4}}, 1, split);
+    for (int y = 0; y < h; ++y)
+        for (int x = 7; x < w; ++x)
+            EXPECT_FLOAT_EQ(spread.out("color").at(0, x, y), dropped.out("color").at(0, x, y));
+    EXPECT_GT(spread.out("color").at(0, 3, 4), dropped.out("color").at(0, 3, 4) + 1e-3f);
+}
+
+// A sample of 1e10 is no light to keep: each pixel receives at most twice the sample's clamp
+// bound (0.01), as it enters the accumulation (alpha 0.2).
+TEST(TemporalAccumulation, FireflySpreadGivesEachPixelAtMostTwoBounds) {
+    const int w = 15, h = 15;
+    Image cur = constant(w, h, Format::Float3, 0.25f);  // 0.25: its squares are exact
+    for (int c = 0; c < 3; ++c) cur.at(c, 7, 7) = 1e10f;
+    const History hist{constant(w, h, Format::Float3, 0.25f), constant(w, h, Format::Float2, 0.25f),
+                       constant(w, h, Format::Float, 8.f)};
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) hist.moments.at(1, x, y) = 0.0625f;  // no variance
+    auto dropped = spreadStep(cur, hist, {{"fireflySpread", 0}});
+    auto spread = spreadStep(cur, hist, {{"fireflySpread", 3}});
+    const float most = 2.f * 0.25f * 0.2f;  // two bounds, entering at alpha 0.2
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const float added = spread.out("color").at(0, x, y) - dropped.out("color").at(0, x, y);
+            EXPECT_LE(added, most * 1.0001f) << x << "," << y;
+            if (std::abs(x - 7) <= 3 && std::abs(y - 7) <= 3) {
+                EXPECT_GT(added, 0.9999f * most) << x << "," << y;
+            }
+        }
+}
+
+// A noise tail (an excess that is a small share of the light around it) is dropped as SVGF
+// drops it; only the share of fireflyFullShare is kept: with the window's clamped share s, the
+// kept part is min(1, s / fireflyFullShare) of the excess.
+TEST(TemporalAccumulation, FireflySpreadKeepsTheShareOfTheLightItCarries) {
+    const int w = 15, h = 15;
+    Image cur = constant(w, h, Format::Float3, 1.f);
+    for (int c = 0; c < 3; ++c) cur.at(c, 7, 7) = 800.f;  // 0.36 per pixel, under two bounds (0.4)
+    const History hist{constant(w, h, Format::Float3, 1.f), constant(w, h, Format::Float2, 1.f),
+                       constant(w, h, Format::Float, 8.f)};  // mean 1, no variance
+    auto unclamped = spreadStep(cur, hist, {{"fireflySigma", 0.0}});
+    auto dropped = spreadStep(cur, hist, {{"fireflySpread", 0}});
+    const double excess = sum(unclamped.out("color"), 0) - sum(dropped.out("color"), 0);
+    // The whole frame is the window at radius 7: its clamped share is excess / all (about 0.42).
+    const double share = excess / sum(unclamped.out("color"), 0);
+    ASSERT_LT(share, 0.5);
+    auto half = spreadStep(cur, hist, {{"fireflySpread", 7}, {"fireflyFullShare", 2.0 * share}});
+    EXPECT_NEAR(sum(half.out("color"), 0) - sum(dropped.out("color"), 0), 0.5 * excess,
+                1e-3 * excess);
+}
+
+// A sample without a history is its pixel's whole colour: the clamp's excess is dropped there
+// (spreading it brought back the noise the clamp removes on a first frame or a disocclusion).
+TEST(TemporalAccumulation, FireflySpreadNeedsAHistory) {
+    const int w = 9, h = 9;
+    Image cur = constant(w, h, Format::Float3, 0.01f);
+    for (int c = 0; c < 3; ++c) cur.at(c, 4, 4) = 1000.f;
+    History none = darkHistory(w, h);
+    none.length.fill(0.f);
+    auto dropped = spreadStep(cur, none, {{"fireflySpread", 0}});
+    auto spread = spreadStep(cur, none, {{"fireflySpread", 3}});
+    EXPECT_TRUE(identical(spread.out("color"), dropped.out("color")));
+}
+
+TEST(TemporalAccumulation, FireflySpreadIsIdenticalWithOneAndTwoThreadsAndFiniteOnDamage) {
+    const int w = 40, h = 130;
+    Image cur = grey(
+        w, h, [](int x, int y) { return hash01(x, y) * (hash01(x, y, 3) > 0.97f ? 100.f : 1.f); });
+    History hist = darkHistory(w, h);
+    auto stripes = [](int x, int y) { return (x / 7 + y / 11) % 3; };
+    auto a = spreadStep(cur, hist, {{"fireflySpread", 9}}, 1, stripes, true);
+    auto b = spreadStep(cur, hist, {{"fireflySpread", 9}}, 2, stripes, true);
+    EXPECT_TRUE(identical(a.out("color"), b.out("color")));
+    EXPECT_TRUE(allFinite(a.out("color")));
+    auto dropped = spreadStep(cur, hist, {{"fireflySpread", 0}}, 1, stripes, true);
+    EXPECT_GT(sum(a.out("color"), 1), sum(dropped.out("color"), 1));
+}

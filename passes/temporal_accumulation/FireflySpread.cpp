@@ -1,0 +1,182 @@
+#include "FireflySpread.h"
+
+#include <kestrel/PixelMath.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstdint>
+
+namespace kestrel::firefly {
+
+void Excess::reset(int width, int height) {
+    w = width;
+    h = height;
+    rgb.assign(size_t(4) * size_t(w) * size_t(h), 0.f);
+}
+
+namespace {
+
+float luminance(float r, float g, float b) {
+    return 0.2126f * r + 0.7152f * g + 0.0722f * b;
+}
+
+/// The G-buffer, sanitised where it is read.
+struct Gbuffer {
+    int w, h;
+    const ImageView &depth, &normal;
+    const int32_t* ids;  ///< null without object ids
+
+    float z(int x, int y) const { return px::sanitizeDepth(depth.row(0, y)[x]); }
+    float n(int c, int x, int y) const { return px::sanitizeNormal(normal.row(c, y)[x]); }
+    int32_t id(int x, int y) const { return ids ? ids[size_t(y) * size_t(w) + size_t(x)] : 0; }
+};
+
+/// A clamped pixel and the share of its excess each pixel of its surface receives.
+struct Source {
+    int x;
+    float s0, s1, s2;
+};
+
+/// The clamped pixels of one row, and for each its window's 2r + 1 masks: bit i of mask j says
+/// whether pixel (x - r + i, y - r + j) is on its surface.
+struct RowSources {
+    std::vector<Source> list;
+    std::vector<uint64_t> masks;
+};
+
+/// Luminance of `color` and of the excess summed along each row over [x - r, x + r]: a running
+/// sum per row (in double: the subtraction of what leaves the window does not drift).
+void rowSums(const FrameContext& ctx, const Excess& e, const ImageView& color, int r,
+             std::vector<float>& sumE, std::vector<float>& sumK) {
+    const int w = e.w;
+    ctx.parallelRows(e.h, [&](int y0, int y1) {
+        std::vector<double> le(static_cast<size_t>(w)), lk(static_cast<size_t>(w));
+        for (int y = y0; y < y1; ++y) {
+            const size_t o = size_t(y) * size_t(w);
+            for (int x = 0; x < w; ++x) {
+                le[x] = luminance(e.plane(0)[o + x], e.plane(1)[o + x], e.plane(2)[o + x]);
+                lk[x] = std::max(0.f, luminance(px::sanitize(color.row(0, y)[x]),
+                                                px::sanitize(color.row(1, y)[x]),
+                                                px::sanitize(color.row(2, y)[x])));
+            }
+            double a = 0.0, b = 0.0;
+            for (int x = 0; x < std::min(r, w); ++x) {
+                a += le[x];
+                b += lk[x];
+            }
+            for (int x = 0; x < w; ++x) {
+                if (x + r < w) {
+                    a += le[x + r];
+                    b += lk[x + r];
+                }
+                if (x - r - 1 >= 0) {
+                    a -= le[x - r - 1];
+                    b -= lk[x - r - 1];
+                }
+                sumE[o + x] = float(std::max(a, 0.0));
+                sumK[o + x] = float(std::max(b, 0.0));
+            }
+        }
+    });
+}
+
+/// Marks the pixels of (x, y)'s window that lie on its surface: the same object, normals within
+/// ~25 degrees, depth within twice the depth slope per pixel of distance (plus 0.1% for a surface
+/// facing the camera; the slope is the largest difference to a 4-neighbour, at most 5% of the
+/// depth: a silhouette's jump is no slope of this surface). Returns how many.
+int markSurface(const Gbuffer& g, int x, int y, int r, uint64_t* mask) {
+    const float z = g.z(x, y), n0 = g.n(0, x, y), n1 = g.n(1, x, y), n2 = g.n(2, x, y);
+    const int32_t id = g.id(x, y);
+    float slope = 0.f;
+    if (x > 0) slope = std::max(slope, std::fabs(g.z(x - 1, y) - z));
+    if (x + 1 < g.w) slope = std::max(slope, std::fabs(g.z(x + 1, y) - z));
+    if (y > 0) slope = std::max(slope, std::fabs(g.z(x, y - 1) - z));
+    if (y + 1 < g.h) slope = std::max(slope, std::fabs(g.z(x, y + 1) - z));
+    slope = std::min(slope, 0.05f * z);
+    std::fill(mask, mask + 2 * r + 1, uint64_t(0));
+    int count = 0;
+    for (int j = std::max(y - r, 0); j <= std::min(y + r, g.h - 1); ++j) {
+        uint64_t bits = 0;
+        for (int i = std::max(x - r, 0); i <= std::min(x + r, g.w - 1); ++i) {
+            if (g.id(i, j) != id) continue;
+            if (!(n0 * g.n(0, i, j) + n1 * g.n(1, i, j) + n2 * g.n(2, i, j) >= 0.9f)) continue;
+            const float dx = float(i - x), dy = float(j - y);
+            const float tolerance = 2.f * slope * std::sqrt(dx * dx + dy * dy) + 1e-3f * z;
+            if (!(std::fabs(g.z(i, j) - z) <= tolerance)) continue;
+            bits |= uint64_t(1) << (i - x + r);
+        }
+        mask[size_t(j - y + r)] = bits;
+        count += std::popcount(bits);
+    }
+    return count;
+}
+
+}  // namespace
+
+void spreadExcess(const FrameContext& ctx, const Excess& excess, const Surface& surface,
+                  SpreadSettings settings, const ImageView& color) {
+    const int w = excess.w, h = excess.h, r = std::min(settings.radius, kMaxRadius);
+    if (r <= 0 || w <= 0 || h <= 0 || !(settings.fullShare > 0.f)) return;
+    const Gbuffer g{w, h, *surface.depth, *surface.normal,
+                    surface.objectId ? surface.objectId->ints() : nullptr};
+    const size_t n = size_t(w) * size_t(h);
+    std::vector<float> sumE(n), sumK(n);
+    rowSums(ctx, excess, color, r, sumE, sumK);
+
+    // The clamped pixels of each row, with the share each pixel of their surface receives.
+    std::vector<RowSources> sources(static_cast<size_t>(h));
+    const size_t window = size_t(2 * r + 1);
+    ctx.parallelRows(h, [&](int y0, int y1) {
+        for (int y = y0; y < y1; ++y)
+            for (int x = 0; x < w; ++x) {
+                const size_t i = size_t(y) * size_t(w) + size_t(x);
+                const float e0 = excess.plane(0)[i], e1 = excess.plane(1)[i],
+                            e2 = excess.plane(2)[i];
+                if (e0 == 0.f && e1 == 0.f && e2 == 0.f) continue;
+                float se = 0.f, sk = 0.f;
+                for (int j = std::max(y - r, 0); j <= std::min(y + r, h - 1); ++j) {
+                    se += sumE[size_t(j) * size_t(w) + size_t(x)];
+                    sk += sumK[size_t(j) * size_t(w) + size_t(x)];
+                }
+                const float f = std::min(1.f, px::safeDiv(se, se + sk) / settings.fullShare);
+                if (!(f > 0.f)) continue;
+                RowSources& row = sources[size_t(y)];
+                row.masks.resize(row.masks.size() + window);
+                const int count =
+                    markSurface(g, x, y, r, row.masks.data() + row.masks.size() - window);
+                if (count == 0) {
+                    row.masks.resize(row.masks.size() - window);
+                    continue;
+                }
+                // Each pixel's share, held to maxBounds of the bound (its luminance is 1).
+                const float each = f / float(count) * luminance(e0, e1, e2);
+                const float most = settings.maxBounds * excess.plane(3)[i];
+                const float k = f / float(count) * (each > most ? px::safeDiv(most, each) : 1.f);
+                row.list.push_back({x, e0 * k, e1 * k, e2 * k});
+            }
+    });
+
+    // Gather: each output row adds the shares of the sources within r rows, in row-major order
+    // of the sources (a fixed order: the sums do not depend on how rows are split over threads).
+    ctx.parallelRows(h, [&](int y0, int y1) {
+        for (int y = y0; y < y1; ++y) {
+            float *o0 = color.row(0, y), *o1 = color.row(1, y), *o2 = color.row(2, y);
+            for (int qy = std::max(y - r, 0); qy <= std::min(y + r, h - 1); ++qy) {
+                const RowSources& row = sources[size_t(qy)];
+                for (size_t k = 0; k < row.list.size(); ++k) {
+                    const Source& s = row.list[k];
+                    for (uint64_t bits = row.masks[k * window + size_t(y - qy + r)]; bits;
+                         bits &= bits - 1) {
+                        const int x = s.x - r + std::countr_zero(bits);
+                        o0[x] += s.s0;
+                        o1[x] += s.s1;
+                        o2[x] += s.s2;
+                    }
+                }
+            }
+        }
+    });
+}
+
+}  // namespace kestrel::firefly

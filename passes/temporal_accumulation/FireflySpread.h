@@ -1,0 +1,57 @@
+#pragma once
+// The energy-keeping half of TemporalAccumulation's firefly clamp. The clamp takes off a sample
+// what lies above its neighbours' and history's bound. Where that is a noise tail, dropping it
+// lowers the error; where it is a large share of the light around it (a lamp the 1-spp frames
+// reach only by rare BSDF samples), dropping it leaves the light missing for good, since the
+// history is built from clamped frames (docs/benchmarks.md, section 7: the firefly clamp's bias).
+// Here that share of the excess is scattered evenly over the same surface around the sample
+// (object id, normal and depth), so the image keeps its energy without keeping the firefly.
+#include <kestrel/Kestrel.h>
+
+#include <vector>
+
+namespace kestrel::firefly {
+
+/// The G-buffer the scatter stays on. objectId may be null.
+struct Surface {
+    const ImageView* depth;
+    const ImageView* normal;
+    const ImageView* objectId;
+};
+
+/// What one pixel receives from one sample at most, in units of the sample's clamp bound (both
+/// as they enter the accumulation): two in-bound samples' worth. A lamp reached by rare samples
+/// ~1000x its neighbours spread over a 19x19 window gives each pixel ~3 bounds, and held to 2 it
+/// scored as high (zoo fireflies 20.06 dB against 20.03 unheld, 19.94 at 1); a sample of 1e10 is
+/// no light to keep, and unheld it lit its window at 1e7 (ExtremeInputs.SinglePixelFireflies).
+constexpr float kMaxBoundsPerPixel = 2.f;
+
+/// The largest radius: a window row's pixels are the bits of one 64-bit mask.
+constexpr int kMaxRadius = 31;
+
+struct SpreadSettings {
+    int radius;       ///< the scatter's window is (2 radius + 1)^2 pixels
+    float maxBounds;  ///< what one pixel receives from one sample, in units of its bound
+    float fullShare;  ///< the clamped share of a window's light at which all of it is kept
+};
+
+/// Clamped excess of one frame: planes of w x h floats: 0-2 the colour the clamp took off each
+/// sample, times the weight the sample enters the accumulation with; 3 the clamp's bound
+/// (luminance) times the same weight; 0 where nothing was taken.
+struct Excess {
+    int w = 0, h = 0;
+    std::vector<float> rgb;  ///< 4 planes
+    void reset(int width, int height);
+    float* plane(int c) { return rgb.data() + size_t(c) * size_t(w) * size_t(h); }
+    const float* plane(int c) const { return rgb.data() + size_t(c) * size_t(w) * size_t(h); }
+};
+
+/// Adds to `color` (the accumulated colour, 3 planes) the kept part of `excess`: at each clamped
+/// pixel q, the share f = min(1, E / (E + K) / fullShare), E and K the luminance of the excess and
+/// of `color` summed over q's window, spread evenly over the window's pixels on q's surface, at
+/// most maxBounds times q's clamp bound on each (a sample of 1e10 is no light to keep).
+/// Deterministic and independent of the thread count (each output row sums in a fixed order).
+void spreadExcess(const FrameContext& ctx, const Excess& excess, const Surface& surface,
+                  SpreadSettings settings, const ImageView& color);
+
+}  // namespace kestrel::firefly
