@@ -38,7 +38,7 @@ const Module& ocioModule() {
         void* handle = path.empty() ? nullptr : ::dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
         if (!handle) {
             const char* e = ::dlerror();
-            module.why = path + ": " + (e ? e : "not found");
+            module.why = e ? e : path + ": not found";  // dlerror names the file
             return;
         }
         module.open = reinterpret_cast<OpenFn>(::dlsym(handle, "kestrel_ocio_open"));
