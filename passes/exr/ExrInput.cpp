@@ -9,10 +9,12 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <string_view>
 #include <vector>
 
+#include "NotExr.h"
 #include "kestrel/Error.h"
 
 namespace kestrel::exr {
@@ -274,7 +276,11 @@ ExrInput::ExrInput(const std::string& path, int64_t maxPixels) : path_(path) {
         stream_ = std::make_unique<Imf::StdIFStream>(path.c_str());
         char magic[4] = {};
         stream_->read(magic, 4);
-        if (!Imf::isImfMagic(magic)) throw Error("not an OpenEXR file (bad magic number)");
+        if (!Imf::isImfMagic(magic)) {  // PNG, HDR, TIFF frames: named, with what is needed
+            unsigned char head[8] = {};
+            std::ifstream(path, std::ios::binary).read(reinterpret_cast<char*>(head), 8);
+            throw Error(notExrMessage(head, std::min<uint64_t>(fileSize, 8)));
+        }
         unsigned char v[4] = {};
         stream_->read(reinterpret_cast<char*>(v), 4);
         int version = int(v[0] | (v[1] << 8) | (v[2] << 16) | (unsigned(v[3]) << 24));

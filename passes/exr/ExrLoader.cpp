@@ -634,6 +634,7 @@ void ExrLoader::ensurePlan(int64_t frame, std::vector<std::string>* notes) {
             break;
         }
     planAntiAliasing(probed.get(), overridden);
+    note(antiAliasing_.why);  // the decision, once per run, with why (PixelJitter.h)
     colorHalf_ = storedAsHalf("color", probed.get(), first);
     depthHalf_ = storedAsHalf("depth", probed.get(), first);
     if (!overridden.count("position")) planPositionFromDepth(probed.get());
@@ -832,7 +833,7 @@ void ExrLoader::planAntiAliasing(ExrInput* first, const std::set<std::string>& o
     } else {
         const auto stated = statedFilterWidth(first);
         if (!stated && plan_.layout == Layout::Blender)
-            antiAliasing_ = assumeBlenderDefaultFilter();
+            antiAliasing_ = decideBlenderAntiAliasing(measureDepthJitter(first));
         else
             antiAliasing_ =
                 decideAntiAliasing(stated, stated ? std::nullopt : measureDepthJitter(first));

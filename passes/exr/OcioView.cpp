@@ -1,67 +1,92 @@
 #include "OcioView.h"
 
+#include <dlfcn.h>
+
 #include <cstdlib>
+#include <mutex>
 
 #include "kestrel/Error.h"
 #include "kestrel/Log.h"
-
-#ifdef KESTREL_HAS_OCIO
-#include <OpenColorIO/OpenColorIO.h>
-namespace OCIO = OCIO_NAMESPACE;
-#endif
+#include "kestrel/Plugin.h"
 
 namespace kestrel::exr {
 
-#ifdef KESTREL_HAS_OCIO
 namespace {
 
-class ConfigView final : public OcioView {
+using OpenFn = void* (*)(const char*, char*, size_t);
+using ApplyFn = void (*)(const void*, float*, size_t);
+using DescribeFn = const char* (*)(const void*);
+using CloseFn = void (*)(void*);
+
+struct Module {
+    OpenFn open = nullptr;
+    ApplyFn apply = nullptr;
+    DescribeFn describe = nullptr;
+    CloseFn close = nullptr;
+    std::string why;  ///< why there is none
+};
+
+/// kestrel_ocio beside the plugin folder (<libdir>/kestrel/), opened once, on the first preview
+/// with $OCIO set (OcioModule.cpp: OpenColorIO is linked there only).
+const Module& ocioModule() {
+    static Module module;
+    static std::once_flag once;
+    std::call_once(once, [] {
+        const auto dirs = defaultPluginDirectories();
+        const std::string path =
+            dirs.empty() ? "" : (dirs.front().parent_path() / "kestrel_ocio.so").string();
+        void* handle = path.empty() ? nullptr : ::dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+        if (!handle) {
+            const char* e = ::dlerror();
+            module.why = e ? e : path + ": not found";  // dlerror names the file
+            return;
+        }
+        module.open = reinterpret_cast<OpenFn>(::dlsym(handle, "kestrel_ocio_open"));
+        module.apply = reinterpret_cast<ApplyFn>(::dlsym(handle, "kestrel_ocio_apply"));
+        module.describe = reinterpret_cast<DescribeFn>(::dlsym(handle, "kestrel_ocio_describe"));
+        module.close = reinterpret_cast<CloseFn>(::dlsym(handle, "kestrel_ocio_close"));
+        if (!module.open || !module.apply || !module.describe || !module.close) {
+            module.open = nullptr;
+            module.why = path + " lacks its entry points";
+        }
+    });
+    return module;
+}
+
+class ModuleView final : public OcioView {
 public:
-    explicit ConfigView(const std::string& file) {
-        OCIO::ConstConfigRcPtr config = OCIO::Config::CreateFromFile(file.c_str());
-        const char* display = config->getDefaultDisplay();
-        if (!display || !*display) throw Error("it has no display");
-        const char* view = config->getDefaultView(display);
-        if (!view || !*view) throw Error(std::string("display ") + display + " has no view");
-        // Renders are scene-linear; a config without that role names its working space default.
-        const char* source =
-            config->hasRole(OCIO::ROLE_SCENE_LINEAR) ? OCIO::ROLE_SCENE_LINEAR : OCIO::ROLE_DEFAULT;
-        cpu_ = config->getProcessor(source, display, view, OCIO::TRANSFORM_DIR_FORWARD)
-                   ->getDefaultCPUProcessor();
-        what_ = "config " + file + ", display " + display + ", view " + view;
-    }
-    void apply(float* rgb, size_t pixels) const override {
-        OCIO::PackedImageDesc desc(rgb, long(pixels), 1, 3);
-        cpu_->apply(desc);
-    }
-    std::string describe() const override { return what_; }
+    ModuleView(const Module& m, void* view) : m_(m), view_(view) {}
+    ~ModuleView() override { m_.close(view_); }
+    ModuleView(const ModuleView&) = delete;
+    ModuleView& operator=(const ModuleView&) = delete;
+    void apply(float* rgb, size_t pixels) const override { m_.apply(view_, rgb, pixels); }
+    std::string describe() const override { return m_.describe(view_); }
 
 private:
-    OCIO::ConstCPUProcessorRcPtr cpu_;
-    std::string what_;
+    const Module& m_;
+    void* view_;
 };
 
 }  // namespace
-#endif
 
 std::unique_ptr<OcioView> OcioView::fromEnvironment() {
     const char* env = std::getenv("OCIO");
     if (!env || !*env) return nullptr;
-#ifdef KESTREL_HAS_OCIO
-    try {
-        return std::make_unique<ConfigView>(env);
-    } catch (const std::exception& e) {
-        throw Error(std::string("$OCIO=") + env + ": cannot use the OpenColorIO config: " +
-                    e.what() + " (unset OCIO for the built-in sRGB previews)");
+    const Module& m = ocioModule();
+    if (!m.open) {
+        // $OCIO is often set for other programs: a build without OpenColorIO still runs.
+        spdlog::warn(
+            "$OCIO={}: this build has no OpenColorIO module ({}; install libopencolorio-dev and "
+            "rebuild); previews use the built-in sRGB",
+            env, m.why);
+        return nullptr;
     }
-#else
-    // $OCIO is often set for other programs: a build without OpenColorIO still runs.
-    spdlog::warn(
-        "$OCIO={}: this build has no OpenColorIO (libopencolorio-dev); previews use the "
-        "built-in sRGB",
-        env);
-    return nullptr;
-#endif
+    char err[512] = {0};
+    void* view = m.open(env, err, sizeof err);
+    if (!view)
+        throw Error(std::string("$OCIO=") + env + ": cannot use the OpenColorIO config: " + err +
+                    " (unset OCIO for the built-in sRGB previews)");
+    return std::make_unique<ModuleView>(m, view);
 }
 
 }  // namespace kestrel::exr

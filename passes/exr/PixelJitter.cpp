@@ -33,13 +33,19 @@ float depthJitterScore(const float* depth, int w, int h) {
     return *mid;
 }
 
-AntiAliasing assumeBlenderDefaultFilter() {
-    char why[320];
+AntiAliasing decideBlenderAntiAliasing(std::optional<float> score) {
+    if (score && *score > kJitterThreshold) return decideAntiAliasing(std::nullopt, score);
+    char measured[96] = "no depth to measure";
+    if (score)
+        std::snprintf(measured, sizeof measured,
+                      "depth jitter score %.3g, samples at pixel centres", double(*score));
+    char why[480];
     std::snprintf(why, sizeof why,
-                  "anti-aliased render assumed: Blender's default %g px pixel filter (no "
-                  "camera.json states the filter, and Cycles' depth pass cannot tell); set "
-                  "input.antiAliased=false for a render with a pixel filter of 1 px or less",
-                  double(kBlenderDefaultFilterWidth));
+                  "anti-aliased render assumed: Blender's default %g px pixel filter (%s, as "
+                  "Cycles writes them at 1 spp with any filter: the data cannot tell, and no "
+                  "camera.json states the filter); set input.antiAliased=false for a render "
+                  "with a pixel filter of 1 px or less",
+                  double(kBlenderDefaultFilterWidth), measured);
     return {true, why};
 }
 

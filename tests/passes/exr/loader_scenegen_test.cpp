@@ -3,6 +3,9 @@
 #include <gtest/gtest.h>
 #include <scenegen/SceneGen.h>
 
+#include <algorithm>
+#include <utility>
+
 #include "ExrLoader.h"
 #include "exr_test_util.h"
 #include "kestrel/testing/PassHarness.h"
@@ -106,4 +109,30 @@ TEST(ExrLoaderScenegen, Games202SequenceLoadsAsGenerated) {
         for (int c = 0; c < 4; ++c)
             EXPECT_NEAR(h.scene.worldToCamera.m[r][c], toMat(f.worldToCamera).m[r][c], 1e-5f)
                 << r << c;
+}
+
+// Point-sampled or anti-aliased, decided from the data (the files state no pixel filter): the
+// zoo's street (every primary ray through the pixel centre) and street-jittered (a 1.5 px
+// Blackman-Harris filter: each 1-spp sample at a random point of its footprint), each written
+// small, no camera.json; the loader's decision (the antiAliased fact) must tell them apart.
+TEST(ExrLoaderScenegen, PixelFilterIsMeasuredOnGeneratedStreets) {
+    for (const auto& [name, antiAliased] :
+         {std::pair{"street", "false"}, std::pair{"street-jittered", "true"}}) {
+        TempDir tmp(std::string("sgjitter-") + name);
+        sg::SceneOptions opt = sg::zooScene(name).options;
+        opt.width = 64;
+        opt.height = 40;
+        opt.frames = 1;
+        opt.referenceSpp = 1;
+        opt.threads = 1;
+        sg::writeSequence(opt, tmp.path);
+        auto h = PassHarness::make<ExrLoader>(
+            {1, 1}, {{"path", (tmp.path / "noisy/frame_####.exr").string()}});
+        RecordingResolve rc(1);
+        h.pass().resolve(rc);
+        EXPECT_EQ(rc.facts["antiAliased"], antiAliased) << name;
+        EXPECT_TRUE(std::any_of(rc.notes.begin(), rc.notes.end(), [](const std::string& n) {
+            return n.find("render (depth jitter score") != std::string::npos;
+        })) << name;
+    }
 }

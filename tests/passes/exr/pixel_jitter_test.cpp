@@ -108,25 +108,37 @@ TEST(PixelJitter, LoaderOffersJitteredAlbedoOnlyForAntiAliasedRenders) {
     EXPECT_EQ(rc.facts["antiAliased"], "false");
 }
 
-// A Blender render that states no pixel filter (no camera.json) is taken to use Blender's
-// default 1.5 px filter: Cycles writes centred depth with any filter, so the measure cannot
-// tell, and users who render for denoising keep the default. The parameter still decides.
-TEST(PixelJitter, BlenderWithoutAStatedFilterAssumesBlendersDefault) {
+// A Blender render that states no pixel filter (no camera.json) is measured: samples off pixel
+// centres decide anti-aliased from the data. Centred samples cannot tell (Cycles centres its first
+// sample with any filter: blender-street's 0.01 and 1.5 px renders agree to 3e-7 in depth), so
+// Blender's default 1.5 px filter is taken and the log says so with the score. The parameter
+// still decides.
+TEST(PixelJitter, BlenderWithoutAStatedFilterIsMeasuredElseTakesBlendersDefault) {
     TempDir tmp("jitter-blender");
-    Channels ch;
-    const auto depth = planeDepth(0.f);
-    for (const char* c : {"R", "G", "B", "A"})
-        ch[std::string("ViewLayer.Combined.") + c].assign(depth.size(), 0.5f);
-    for (const char* c : {"R", "G", "B"})
-        ch[std::string("ViewLayer.Denoising Albedo.") + c].assign(depth.size(), 0.25f);
-    ch["ViewLayer.Depth.Z"] = depth;
-    auto rc = resolveLoader(tmp, ch, nullptr);
+    auto blenderFrame = [](const std::vector<float>& depth) {
+        Channels ch;
+        for (const char* c : {"R", "G", "B", "A"})
+            ch[std::string("ViewLayer.Combined.") + c].assign(depth.size(), 0.5f);
+        for (const char* c : {"R", "G", "B"})
+            ch[std::string("ViewLayer.Denoising Albedo.") + c].assign(depth.size(), 0.25f);
+        ch["ViewLayer.Depth.Z"] = depth;
+        return ch;
+    };
+    auto noted = [](const RecordingResolve& rc, const std::string& what) {
+        return std::any_of(rc.notes.begin(), rc.notes.end(),
+                           [&](const std::string& n) { return n.find(what) != std::string::npos; });
+    };
+    auto rc = resolveLoader(tmp, blenderFrame(planeDepth(0.75f)), nullptr);
+    EXPECT_EQ(rc.facts["antiAliased"], "true");
+    EXPECT_TRUE(noted(rc, "anti-aliased render (depth jitter score"))
+        << testing::PrintToString(rc.notes);
+    EXPECT_FALSE(noted(rc, "assumed"));
+    rc = resolveLoader(tmp, blenderFrame(planeDepth(0.f)), nullptr);
     EXPECT_EQ(rc.facts["antiAliased"], "true");
     EXPECT_EQ(rc.absent.count("jitteredAlbedo"), 0u);
-    EXPECT_TRUE(std::any_of(rc.notes.begin(), rc.notes.end(), [](const std::string& n) {
-        return n.find("Blender's default 1.5 px pixel filter") != std::string::npos;
-    }));
-    rc = resolveLoader(tmp, ch, nullptr, "false");
+    EXPECT_TRUE(noted(rc, "Blender's default 1.5 px pixel filter (depth jitter score"))
+        << testing::PrintToString(rc.notes);
+    rc = resolveLoader(tmp, blenderFrame(planeDepth(0.75f)), nullptr, "false");
     EXPECT_EQ(rc.facts["antiAliased"], "false");
 }
 
