@@ -7,10 +7,24 @@
 
 class TemporalAccumulationPass final : public kestrel::Pass {
 public:
-    static kestrel::PassDesc describe();
-    explicit TemporalAccumulationPass(const kestrel::ParamValues& p);
+    struct Params {
+        float alpha = 0.2f;
+        float momentsAlpha = 0.2f;
+        float maxHistoryLength = 32.f;
+        float fireflySigma = 3.f;
+    };
+    /// Ports and parameters, declared once (kestrel/Declare.h).
+    struct Declaration : kestrel::Declaration<Params> {
+        Declaration();
+        kestrel::InputPort color, prevColor, prevMoments, prevHistoryLength;
+        kestrel::OutputPort colorOut, moments, historyLength, variance;
+    };
+    static const Declaration& declaration();
+
+    static kestrel::PassDesc describe() { return declaration().desc(); }
+    explicit TemporalAccumulationPass(const kestrel::ParamValues& p) : p_(declaration().read(p)) {}
     void execute(kestrel::FrameContext& ctx, kestrel::PassIO& io) override;
 
 private:
-    float alpha_, momentsAlpha_, maxHistory_, fireflySigma_;
+    Params p_;
 };
