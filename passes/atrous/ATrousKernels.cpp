@@ -1,7 +1,8 @@
+// The fast path of one A-Trous iteration (ATrousPass.cpp declares and resolves the pass).
 // Compiled once per SIMD target (hwy/foreach_target.h re-includes this file for each one); the
-// per-target kernels live in kestrel::N_<TARGET>, everything else in the HWY_ONCE part at the
-// end, which picks the best target of the running CPU (HWY_DYNAMIC_DISPATCH).
-#include "ATrousPass.h"
+// per-target kernels live in kestrel::N_<TARGET>, and the HWY_ONCE part at the end picks the
+// best target of the running CPU (HWY_DYNAMIC_DISPATCH).
+#include "ATrousKernels.h"
 
 #include <kestrel/PixelMath.h>
 #include <kestrel/Scratch.h>
@@ -13,147 +14,25 @@
 #include <numeric>
 #include <vector>
 
-#include "ATrousReference.h"
-
-#ifndef KESTREL_ATROUS_BINDINGS_
-#define KESTREL_ATROUS_BINDINGS_
-namespace {
-/// The pass's bound images, shared by the fast (per-target) and the exact path.
-struct Bindings {
-    explicit Bindings(kestrel::PassIO& io)
-        : color(io.input("color")),
-          depth(io.input("depth")),
-          normal(io.input("normal")),
-          var(io.hasInput("variance") ? &io.input("variance") : nullptr),
-          idView(io.hasInput("objectId") ? &io.input("objectId") : nullptr),
-          ids(idView ? idView->ints() : nullptr),
-          outColor(io.output("color")),
-          outVar(var && io.hasOutput("variance") ? &io.output("variance") : nullptr) {}
-    const kestrel::ImageView &color, &depth, &normal;
-    const kestrel::ImageView *var, *idView;
-    const int32_t* ids;
-    const kestrel::ImageView& outColor;
-    const kestrel::ImageView* outVar;
-};
-}  // namespace
-#endif
-
 #undef HWY_TARGET_INCLUDE
-#define HWY_TARGET_INCLUDE "ATrousPass.cpp"
+#define HWY_TARGET_INCLUDE "ATrousKernels.cpp"
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
 // After foreach_target.h: once per target.
 #include <hwy/highway.h>
 #include <kestrel/SimdMath.h>
 
+#include "ATrousBands-inl.h"
+
 HWY_BEFORE_NAMESPACE();
 namespace kestrel::HWY_NAMESPACE {
 namespace {
 
-namespace hn = hwy::HWY_NAMESPACE;
 constexpr float kH[5] = {1.f / 16.f, 1.f / 4.f, 3.f / 8.f, 1.f / 4.f, 1.f / 16.f};
-constexpr float kEpsL = 1e-10f;    // SVGF eq. 5 epsilon (Falcor uses 1e-10 too)
 constexpr float kEpsZRel = 1e-5f;  // depth tolerance floor relative to z: float depth noise
 constexpr float kEpsZAbs = 1e-8f;
 constexpr float kMinDot = 1e-30f;
 constexpr float kZeroWeight = -1e4f;  // log2 weight penalty: fastExp2 returns exactly 0
 constexpr float kLn2 = 0.693147180559945f;
-constexpr float kMaxVariance = 1e32f;  // sanitizePositive's limit for the variance input
-
-// The planes a band computes first: reading its inputs in place, it needs scratch only for them.
-// L, INVL, R, G, B and VAR are per signal (a fused pair filters two, executeFused); the
-// geometry is shared.
-enum Plane {
-    GX,
-    GY,
-    L,
-    INVL,
-    L2,
-    INVL2,
-    R,
-    G,
-    B,
-    Z,
-    NX,
-    NY,
-    NZ,
-    VAR,
-    ID,
-    R2,
-    G2,
-    B2,
-    VAR2,
-    kPlaneCount
-};
-constexpr int kComputedPlanes[3] = {0, INVL + 1, INVL2 + 1};  // by signal count
-constexpr int kLum[2] = {L, L2}, kInvL[2] = {INVL, INVL2}, kVarPlane[2] = {VAR, VAR2};
-constexpr int kRgb[2][3] = {{R, G, B}, {R2, G2, B2}};
-
-template <class Fn>
-void copySanitized(const float* __restrict src, float* __restrict dst, int n, Fn fn) {
-    for (int x = 0; x < n; ++x) dst[x] = fn(src[x]);
-}
-
-void lumaRow(const float* __restrict r, const float* __restrict g, const float* __restrict b,
-             float* __restrict l, int n) {
-    for (int x = 0; x < n; ++x) l[x] = px::luminance(r[x], g[x], b[x]);
-}
-
-/// Depth derivatives of one row (px::minAbsDiff), border columns/rows one-sided.
-void gradientRow(const float* __restrict z, const float* __restrict za, const float* __restrict zb,
-                 float* __restrict gx, float* __restrict gy, int n, bool up, bool down) {
-    for (int x = 0; x < n; ++x) gy[x] = px::minAbsDiff(za[x], z[x], zb[x], up, down);
-    if (n < 2) {
-        if (n == 1) gx[0] = 0.f;
-        return;
-    }
-    gx[0] = z[1] - z[0];
-    for (int x = 1; x + 1 < n; ++x) {
-        const float b = z[x] - z[x - 1], f = z[x + 1] - z[x];
-        gx[x] = std::fabs(b) <= std::fabs(f) ? b : f;
-    }
-    gx[n - 1] = z[n - 1] - z[n - 2];
-}
-
-void verticalRow(const float* __restrict a, const float* __restrict c, const float* __restrict b,
-                 float wa, float wb, float norm, float* __restrict out, int n) {
-    for (int x = 0; x < n; ++x) out[x] = (wa * a[x] + 0.5f * c[x] + wb * b[x]) * norm;
-}
-
-/// Horizontal (1/4, 1/2, 1/4) of the vertically filtered variance, then the luminance weight's
-/// per-pixel factor 1 / (sigma_l sqrt(g3x3(Var)) + eps) (SVGF eq. 5).
-void horizontalInvL(const float* __restrict v, float* __restrict invL, int n, float sigmaL) {
-    auto finish = [&](float g) { return 1.f / (sigmaL * std::sqrt(std::max(0.f, g)) + kEpsL); };
-    if (n == 1) {
-        invL[0] = finish(v[0]);
-        return;
-    }
-    invL[0] = finish((0.5f * v[0] + 0.25f * v[1]) / 0.75f);
-    // Explicit vectors: GCC leaves this loop scalar (sqrt and division one lane at a time took
-    // a fifth of the preparation's time).
-    const simd::DF d;
-    const int lanes = int(hn::Lanes(d));
-    const auto quarter = hn::Set(d, 0.25f), half = hn::Set(d, 0.5f), one = hn::Set(d, 1.f);
-    const auto sl = hn::Set(d, sigmaL), eps = hn::Set(d, kEpsL);
-    int x = 1;
-    for (; x + lanes < n; x += lanes) {
-        const auto g = hn::MulAdd(
-            quarter, hn::LoadU(d, v + x - 1),
-            hn::MulAdd(half, hn::LoadU(d, v + x), hn::Mul(quarter, hn::LoadU(d, v + x + 1))));
-        const auto den = hn::MulAdd(sl, hn::Sqrt(hn::Max(g, hn::Zero(d))), eps);
-        hn::StoreU(hn::Div(one, den), d, invL + x);
-    }
-    for (; x + 1 < n; ++x) invL[x] = finish(0.25f * v[x - 1] + 0.5f * v[x] + 0.25f * v[x + 1]);
-    invL[n - 1] = finish((0.5f * v[n - 1] + 0.25f * v[n - 2]) / 0.75f);
-}
-
-using simd::DF;
-using simd::DI;
-using simd::VF;
-using simd::VI;
-
-/// Where masked loads cannot fault, edge vectors load with a mask of the lanes inside the row,
-/// so the planes need no margins and the filter can read its inputs in place.
-constexpr bool kMaskedEdges = simd::kMaskedLoadsCannotFault;
 
 /// The filter for K consecutive vectors of pixels (x0 .. x0 + K lanes) of row y. The centres'
 /// terms and the accumulators stay in registers while the taps stream by, and independent
@@ -165,7 +44,9 @@ constexpr bool kMaskedEdges = simd::kMaskedLoadsCannotFault;
 /// they read into the copied planes' zeroed margins. Returns whether the
 /// centre pixels' inputs are clean: sanitising them (pass 1 below) would change nothing (the
 /// tests are exactly the identity conditions of px::sanitize, sanitizeNormal, sanitizeDepth
-/// and sanitizePositive).
+/// and sanitizePositive). One function of ~240 lines, a kernel: the centres' terms, the
+/// accumulators and the taps lambda share registers through the 24 taps, which functions of
+/// their own would pass through memory (the block loop is this pass's whole cost).
 template <int K, int S, int kSquarings, bool kEdge, bool kId, bool kNormal, bool kVar>
 bool filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATrousPass::Settings& s,
                   float* const* P, int base, const int32_t* ids, float* const (*oc)[3],
@@ -412,7 +293,7 @@ bool filterBlocks(int x0, int y, int width, size_t pitch, int height, const ATro
 /// width and step, never on the banding or thread count.
 template <int S, int kSquarings, bool kId, bool kNormal, bool kVar>
 void filterRange(int y0, int y1, int width, size_t pitch, int height, const ATrousPass::Settings& s,
-                 float* const* P, int base, const int32_t* ids, const Bindings* const* b,
+                 float* const* P, int base, const int32_t* ids, const ATrousBindings* const* b,
                  uint8_t* rowClean, bool checkVar) {
     // Two vectors per block: on AVX-512 (1080p, 1 thread, min of 7) 52.8-55.2 ms at step 1
     // against 54.5-56.9 ms for one vector, equal at step 16. A pair of signals keeps twice the
@@ -447,39 +328,93 @@ void filterRange(int y0, int y1, int width, size_t pitch, int height, const ATro
     }
 }
 
+/// Pass 3: the filter itself, the kernel variant for the bindings and settings.
+void filterBand(const Job& job, const Band& band, uint8_t* rowClean) {
+    const ATrousPass::Settings& s = job.s;
+    auto run = [&](auto id, auto nrm, auto v) {
+        constexpr bool kId = decltype(id)::value, kNormal = decltype(nrm)::value,
+                       kVar = decltype(v)::value;
+        // The default sigma_n = 128 = 2^7 gets a kernel with its seven squarings unrolled.
+        auto range = [&](auto pair, auto squarings) {
+            filterRange<decltype(pair)::value, decltype(squarings)::value, kId, kNormal, kVar>(
+                band.y0, band.y1, job.width, band.pitch, job.height, s, band.P, band.base, band.ids,
+                job.b, rowClean, job.checkVar);
+        };
+        using One = std::integral_constant<int, 1>;
+        using Two = std::integral_constant<int, 2>;
+        using Seven = std::integral_constant<int, 7>;
+        using Zero = std::integral_constant<int, 0>;
+        if (job.signals == 2)
+            s.sigmaN == 128.f ? range(Two{}, Seven{}) : range(Two{}, Zero{});
+        else
+            s.sigmaN == 128.f ? range(One{}, Seven{}) : range(One{}, Zero{});
+    };
+    using T = std::true_type;
+    using F = std::false_type;
+    const bool withVar = job.withVar;
+    if (job.ids) {
+        if (job.useNormal)
+            withVar ? run(T{}, T{}, T{}) : run(T{}, T{}, F{});
+        else
+            withVar ? run(T{}, F{}, T{}) : run(T{}, F{}, F{});
+    } else {
+        if (job.useNormal)
+            withVar ? run(F{}, T{}, T{}) : run(F{}, T{}, F{});
+        else
+            withVar ? run(F{}, F{}, T{}) : run(F{}, F{}, F{});
+    }
+}
+
+/// The bands in `list`, read in place or from sanitised copies.
+void filterBands(FrameContext& ctx, ScratchArena& arena, const Job& job,
+                 const std::vector<int>& list, bool inPlace, uint8_t* rowClean) {
+    ctx.parallel->forRange(
+        0, int(list.size()),
+        [&](int j0, int j1) {
+            // Scratch for the planes this band computes or copies (a single signal's exactly
+            // those it uses).
+            const int limit = inPlace ? kComputedPlanes[job.signals] : kPlaneCount;
+            auto used = [&](int k) {
+                return job.signals == 2 || (k != L2 && k != INVL2 && k < R2);
+            };
+            int planes = 0;
+            for (int k = 0; k < limit; ++k) planes += used(k);
+            auto lease = arena.acquire(size_t(planes), job.bandPixels);
+            float* scratch[kPlaneCount] = {};
+            for (int k = 0, next = 0; k < limit; ++k)
+                if (used(k)) scratch[k] = lease[size_t(next++)] + job.margin;
+            std::vector<float> vcol(static_cast<size_t>(job.width));
+            for (int j = j0; j < j1; ++j) {
+                const int i = list[size_t(j)];
+                Band band;
+                band.y0 = i * job.band;
+                band.y1 = std::min(job.height, band.y0 + job.band);
+                band.base = std::max(0, band.y0 - job.reach);
+                band.p1 = std::min(job.height, band.y1 + job.reach);
+                // In place: rows `width` apart, scratch only for the computed planes; else
+                // every plane in scratch, rows `pitch` apart with zeroed margins.
+                band.pitch = inPlace ? size_t(job.width) : job.pitch;
+                std::copy_n(scratch, kPlaneCount, band.P);
+                band.ids = job.ids ? reinterpret_cast<const int32_t*>(band.P[ID]) : nullptr;
+                if (inPlace)
+                    bindInPlace(job, band);
+                else
+                    copySanitised(job, band);
+                centreTerms(job, band, vcol.data());
+                filterBand(job, band, rowClean);
+            }
+        },
+        1);
+}
+
 /// The fast path (everything but `exact`) for this target: one signal, or a fused pair
 /// (`signals` = 2) sharing the first's geometry and geometric settings; each signal's own
 /// settings give its luminance weight (sigmaL, sigmaColor). Band scratch comes from the step's
 /// idle planes where they suffice (ScratchArena).
-void filterFast(FrameContext& ctx, const Bindings* const* b, int signals,
+void filterFast(FrameContext& ctx, const ATrousBindings* const* b, int signals,
                 const ATrousPass::Settings* settings, std::span<float* const> idle) {
     ScratchArena arena(idle, ctx.extent.pixels());
-    const int width = ctx.extent.width, height = ctx.extent.height;
-    const ImageView &depth = b[0]->depth, &normal = b[0]->normal;
-    const int32_t* ids = b[0]->ids;
-    const bool withVar = std::any_of(b, b + signals, [](const Bindings* g) { return g->outVar; });
-    const bool checkVar = b[0]->var != nullptr;
-    // The image is filtered in bands of rows, each with private scratch planes covering the
-    // band and the rows its taps reach (2 step above and below): scratch then scales with the
-    // band, not the frame (at 1080p and step 16, 13 planes of 128 rows, ~13 MB per thread, and
-    // 4 planes when the band reads its inputs in place, instead of ~108 MB), at the cost of
-    // recomputing the halo rows' terms. Every value depends only on its pixel's neighbourhood,
-    // so results do not depend on the banding. Copied bands' rows are `pitch` apart, each
-    // followed by a margin of the reach plus one vector (which is also the next row's left
-    // margin; the first row has one before it), zeroed where the edge vectors' loads are not
-    // masked (!kMaskedEdges), so that they may read past a row's ends.
-    // Bands of 64 rows (twice the reach from step 16 on): the halo is then a quarter of the
-    // band at step 4 (it was half with 32-row bands: 57-62 against 66-70 ms, 1 thread), and the
-    // largest scratch, step 16's 64 + 2 x 32 rows, stays the same.
-    const ATrousPass::Settings s = settings[0];
-    const int reach = 2 * s.step;
-    const int band = std::min(height, std::max(64, 2 * reach));
-    const int bands = (height + band - 1) / band;
-    const int maxRows = std::min(height, band + 2 * reach);
-    const size_t margin = size_t(reach) + hn::Lanes(DF());
-    const size_t pitch = size_t(width) + margin;
-    const size_t bandPixels = margin + size_t(maxRows) * pitch;
-    const bool useNormal = s.sigmaN > 0.f;
+    const Job job(ctx, b, signals, settings);
     // Inputs are nearly always clean (the previous iteration's output, the loader's geometry),
     // so every band first reads them in place, without copying nine planes into scratch
     // (1080p, 1 thread, min of 5, three alternating rounds: step 1 51-52 -> 44-45 ms, step 16
@@ -487,167 +422,21 @@ void filterFast(FrameContext& ctx, const Bindings* const* b, int signals,
     // pixel's inputs (filterBlocks). A band whose rows, its halo included, are not all clean is
     // then filtered again from sanitised copies. Both ways give the same values to the same
     // kernel, so the output does not depend on which was taken.
-    std::vector<uint8_t> rowClean(size_t(height), 0);
+    std::vector<uint8_t> rowClean(size_t(job.height), 0);
     const bool tryInPlace = kMaskedEdges;
-    auto filterBands = [&](const std::vector<int>& list, bool inPlace) {
-        ctx.parallel->forRange(
-            0, int(list.size()),
-            [&](int j0, int j1) {
-                // Scratch for the planes this band computes or copies (a single signal's
-                // exactly those it uses).
-                const int limit = inPlace ? kComputedPlanes[signals] : kPlaneCount;
-                auto used = [&](int k) {
-                    return signals == 2 || (k != L2 && k != INVL2 && k < R2);
-                };
-                int planes = 0;
-                for (int k = 0; k < limit; ++k) planes += used(k);
-                auto lease = arena.acquire(size_t(planes), bandPixels);
-                float* scratch[kPlaneCount] = {};
-                for (int k = 0, next = 0; k < limit; ++k)
-                    if (used(k)) scratch[k] = lease[size_t(next++)] + margin;
-                std::vector<float> vcol(static_cast<size_t>(width));
-                for (int j = j0; j < j1; ++j) {
-                    const int i = list[size_t(j)];
-                    const int y0 = i * band, y1 = std::min(height, y0 + band);
-                    const int r0 = std::max(0, y0 - reach), r1 = std::min(height, y1 + reach);
-                    // The 3x3 terms of the band's rows read one row beyond them: inside the reach.
-                    const int base = r0, p1 = r1;
-                    // In place: the input planes from row `base` on, rows `width` apart, and
-                    // scratch only for the computed planes; else every plane in scratch, rows
-                    // `pitch` apart with zeroed margins.
-                    const size_t bandPitch = inPlace ? size_t(width) : pitch;
-                    float* P[kPlaneCount];
-                    std::copy_n(scratch, kPlaneCount, P);
-                    auto off = [&](int y) { return size_t(y - base) * bandPitch; };
-                    const int32_t* bandIds =
-                        ids ? reinterpret_cast<const int32_t*>(P[ID]) : nullptr;
-                    if (inPlace) {
-                        for (int c = 0; c < 3; ++c) P[NX + c] = normal.row(c, base);
-                        P[Z] = depth.row(0, base);
-                        if (ids) bandIds = ids + size_t(base) * size_t(width);
-                        for (int g = 0; g < signals; ++g) {
-                            const int* rgb = kRgb[g];
-                            for (int c = 0; c < 3; ++c) P[rgb[c]] = b[g]->color.row(c, base);
-                            if (checkVar) P[kVarPlane[g]] = b[g]->var->row(0, base);
-                            for (int y = base; y < p1; ++y) {
-                                const size_t o = off(y);
-                                lumaRow(P[rgb[0]] + o, P[rgb[1]] + o, P[rgb[2]] + o, P[kLum[g]] + o,
-                                        width);
-                            }
-                        }
-                    }
-                    // Margins: zero (finite: a tap outside the row has weight 0, which multiplies
-                    // them).
-                    for (int k = 0; k < kPlaneCount && !inPlace && !kMaskedEdges; ++k) {
-                        if (!P[k]) continue;  // a plane this signal count does not use
-                        std::fill_n(P[k] - margin, margin, 0.f);
-                        for (int y = base; y < p1; ++y)
-                            std::fill_n(P[k] + off(y) + width, margin, 0.f);
-                    }
-                    // Pass 1: sanitised copies and luminance (inputs may hold NaN/Inf; nothing
-                    // below may). One plane per loop: two streams each, so every loop vectorises.
-                    for (int y = base; y < p1 && !inPlace; ++y) {
-                        const size_t o = off(y);
-                        for (int c = 0; c < 3; ++c)
-                            copySanitized(normal.row(c, y), P[NX + c] + o, width,
-                                          px::sanitizeNormal);
-                        copySanitized(depth.row(0, y), P[Z] + o, width, px::sanitizeDepth);
-                        if (ids)
-                            std::copy_n(ids + size_t(y) * size_t(width), width,
-                                        reinterpret_cast<int32_t*>(P[ID]) + o);
-                        for (int g = 0; g < signals; ++g) {
-                            const int* rgb = kRgb[g];
-                            for (int c = 0; c < 3; ++c)
-                                copySanitized(b[g]->color.row(c, y), P[rgb[c]] + o, width,
-                                              [](float v) { return px::sanitize(v); });
-                            if (checkVar)
-                                copySanitized(
-                                    b[g]->var->row(0, y), P[kVarPlane[g]] + o, width,
-                                    [](float v) { return px::sanitizePositive(v, kMaxVariance); });
-                            lumaRow(P[rgb[0]] + o, P[rgb[1]] + o, P[rgb[2]] + o, P[kLum[g]] + o,
-                                    width);
-                        }
-                    }
-                    // Pass 2: depth gradient (edge-preserving one-sided differences) and the
-                    // luminance weight's 1 / (sigma_l sqrt(g3x3(Var)) + eps) with a 3x3 Gaussian
-                    // prefilter (SVGF section 4.4), renormalised at the image border. Both weigh
-                    // only the centre pixel p, never a tap q, so only the band's own rows need
-                    // them, not its halo.
-                    for (int y = y0; y < y1; ++y) {
-                        const size_t o = off(y);
-                        const bool up = y > 0, down = y + 1 < height;
-                        const float* z = P[Z] + o;
-                        gradientRow(z, up ? z - bandPitch : z, down ? z + bandPitch : z, P[GX] + o,
-                                    P[GY] + o, width, up, down);
-                        for (int g = 0; g < signals; ++g) {
-                            float* invL = P[kInvL[g]] + o;
-                            if (!checkVar) {
-                                std::fill(invL, invL + width,
-                                          1.f / (settings[g].sigmaColor + kEpsL));
-                                continue;
-                            }
-                            // Separable 3x3 Gaussian (1/4, 1/2, 1/4)^2: vertical, then
-                            // horizontal; weights of taps outside the image are dropped and the
-                            // rest renormalised.
-                            const float* v = P[kVarPlane[g]] + o;
-                            const float* va = up ? v - bandPitch : v;
-                            const float* vb = down ? v + bandPitch : v;
-                            const float wa = up ? 0.25f : 0.f, wb = down ? 0.25f : 0.f;
-                            const float vNorm = 1.f / (0.5f + wa + wb);
-                            verticalRow(va, v, vb, wa, wb, vNorm, vcol.data(), width);
-                            horizontalInvL(vcol.data(), invL, width, settings[g].sigmaL);
-                        }
-                    }
-                    // Pass 3: the filter itself.
-                    auto run = [&](auto id, auto nrm, auto v) {
-                        constexpr bool kId = decltype(id)::value, kNormal = decltype(nrm)::value,
-                                       kVar = decltype(v)::value;
-                        // The default sigma_n = 128 = 2^7 gets a kernel with its seven squarings
-                        // unrolled.
-                        auto range = [&](auto pair, auto squarings) {
-                            filterRange<decltype(pair)::value, decltype(squarings)::value, kId,
-                                        kNormal, kVar>(y0, y1, width, bandPitch, height, s, P, base,
-                                                       bandIds, b, rowClean.data(), checkVar);
-                        };
-                        using One = std::integral_constant<int, 1>;
-                        using Two = std::integral_constant<int, 2>;
-                        using Seven = std::integral_constant<int, 7>;
-                        using Zero = std::integral_constant<int, 0>;
-                        if (signals == 2)
-                            s.sigmaN == 128.f ? range(Two{}, Seven{}) : range(Two{}, Zero{});
-                        else
-                            s.sigmaN == 128.f ? range(One{}, Seven{}) : range(One{}, Zero{});
-                    };
-                    using T = std::true_type;
-                    using F = std::false_type;
-                    if (ids) {
-                        if (useNormal)
-                            withVar ? run(T{}, T{}, T{}) : run(T{}, T{}, F{});
-                        else
-                            withVar ? run(T{}, F{}, T{}) : run(T{}, F{}, F{});
-                    } else {
-                        if (useNormal)
-                            withVar ? run(F{}, T{}, T{}) : run(F{}, T{}, F{});
-                        else
-                            withVar ? run(F{}, F{}, T{}) : run(F{}, F{}, F{});
-                    }
-                }
-            },
-            1);
-    };
-    std::vector<int> all(static_cast<size_t>(bands));
+    std::vector<int> all(static_cast<size_t>(job.bands));
     std::iota(all.begin(), all.end(), 0);
-    filterBands(all, tryInPlace);
+    filterBands(ctx, arena, job, all, tryInPlace, rowClean.data());
     if (!tryInPlace) return;
     std::vector<int> dirty;
-    for (int i = 0; i < bands; ++i) {
-        const int base = std::max(0, i * band - reach);
-        const int end = std::min(height, (i + 1) * band + reach);
+    for (int i = 0; i < job.bands; ++i) {
+        const int base = std::max(0, i * job.band - job.reach);
+        const int end = std::min(job.height, (i + 1) * job.band + job.reach);
         if (!std::all_of(rowClean.begin() + base, rowClean.begin() + end,
                          [](uint8_t c) { return c != 0; }))
             dirty.push_back(i);
     }
-    if (!dirty.empty()) filterBands(dirty, false);
+    if (!dirty.empty()) filterBands(ctx, arena, job, dirty, false, rowClean.data());
 }
 
 }  // namespace
@@ -659,120 +448,10 @@ namespace kestrel {
 namespace {
 HWY_EXPORT(filterFast);
 }  // namespace
+
+void atrousFilterFast(FrameContext& ctx, const ATrousBindings* const* b, int signals,
+                      const ATrousPass::Settings* settings, std::span<float* const> idle) {
+    HWY_DYNAMIC_DISPATCH(filterFast)(ctx, b, signals, settings, idle);
+}
 }  // namespace kestrel
-
-using namespace kestrel;
-
-PassDesc ATrousPass::describe() {
-    PassDesc d("ATrous",
-               "One edge-avoiding A-Trous iteration (SVGF eq. 1-5): 5x5 B-spline taps at multiples"
-               " of `step`, weighted by depth, normal, object id and variance-normalised luminance;"
-               " variance propagated as sum(w^2 Var) / (sum w)^2.");
-    d.input("color", Format::Float3, "illumination to filter")
-        .optionalInput("variance", Format::Float,
-                       "luminance variance; without it the luminance weight uses sigmaColor")
-        .input("depth", Format::Float, "linear view depth")
-        .input("normal", Format::Float3, "world-space unit normal")
-        .optionalInput("objectId", Format::Int32, "object id: taps on another object get weight 0")
-        .output("color", Format::Float3, "filtered illumination")
-        .output("variance", Format::Float, "propagated variance (absent without variance input)")
-        .fuseOn({"depth", "normal", "objectId"}, PassDesc::FusedOutputs::MayDiffer)
-        .paramInt("step", 1, 1, 1024, "tap spacing in pixels (2^iteration)")
-        .paramFloat("sigmaZ", 1.0, 0.0, 1e6, "depth weight: tolerance in units of the depth slope")
-        .paramFloat("sigmaN", 128.0, 0.0, 1e4, "normal weight exponent on max(0, n_p . n_q)")
-        .paramFloat("sigmaL", 4.0, 0.0, 1e6, "luminance weight: tolerance in standard deviations")
-        .paramFloat("sigmaColor", 0.6, 1e-6, 1e6,
-                    "luminance tolerance (absolute) used when no variance is bound")
-        .paramInt("iteration", 0, 0, 1024,
-                  "this pass's index in its chain (0 first); with iterations, lets one "
-                  "parameter set how many of a chain's passes run")
-        .paramInt("iterations", 1024, 1, 1024,
-                  "how many iterations the chain runs (a group parameter): a pass with "
-                  "iteration >= iterations passes color and variance through and is left out")
-        .paramBool("exact", false,
-                   "run the plain scalar path (libm exp/pow, no SIMD) to measure what the fast"
-                   " path's approximations cost in error; several times slower");
-    return d;
-}
-
-ATrousPass::ATrousPass(const ParamValues& p) {
-    s_.step = int(p.getInt("step"));
-    s_.sigmaZ = p.getFloat("sigmaZ");
-    s_.sigmaN = p.getFloat("sigmaN");
-    s_.sigmaL = p.getFloat("sigmaL");
-    s_.sigmaColor = p.getFloat("sigmaColor");
-    exact_ = p.getBool("exact");
-    skipped_ = p.getInt("iteration") >= p.getInt("iterations");
-}
-
-void ATrousPass::resolve(ResolveContext& rc) {
-    s_.depthPrecision = depthPrecision(rc);
-    if (skipped_) {  // beyond the chain's iteration count: an identity, left out by the compiler
-        rc.forward("color", "color");
-        if (rc.isBound("variance")) rc.forward("variance", "variance");
-    }
-    varianceBound_ = rc.isBound("variance");
-    if (!varianceBound_) {
-        rc.setAbsent("variance", "no variance input");
-        rc.note("no variance input: luminance weight uses the fixed sigmaColor");
-    }
-}
-
-std::string ATrousPass::fusionKey() const {
-    if (exact_ || skipped_) return {};
-    // Everything the shared geometric work depends on; sigmaL and sigmaColor are per signal.
-    // A pair filters both signals with or both without a variance.
-    char key[128];
-    std::snprintf(key, sizeof key, "step=%d sigmaZ=%a sigmaN=%a depthPrecision=%a variance=%d",
-                  s_.step, double(s_.sigmaZ), double(s_.sigmaN), double(s_.depthPrecision),
-                  int(varianceBound_));
-    return key;
-}
-
-namespace {
-/// Whether two passes' bindings can be filtered as one pair: the same geometry images and both
-/// with or both without a variance input (the kernel's variants are per pair). Their variance
-/// outputs may differ: the pair then filters both variances and stores the one that is bound
-/// (the specular chain's last iteration, whose variance nobody reads, pairs with the diffuse
-/// chain's third).
-bool pairable(const Bindings& a, const Bindings& b) {
-    return a.depth.planes == b.depth.planes && a.normal.planes == b.normal.planes &&
-           a.ids == b.ids && (a.var == nullptr) == (b.var == nullptr);
-}
-}  // namespace
-
-void ATrousPass::executeFused(FrameContext& ctx, std::span<Pass* const> passes,
-                              std::span<PassIO* const> ios) {
-    // Pairs share each tap's depth, normal and object-id work (NRD filters diffuse and
-    // specular together the same way); an odd one out runs alone.
-    size_t i = 0;
-    for (; i + 1 < ios.size(); i += 2) {
-        const Bindings b0(*ios[i]), b1(*ios[i + 1]);
-        if (!pairable(b0, b1)) {
-            passes[i]->execute(ctx, *ios[i]);
-            passes[i + 1]->execute(ctx, *ios[i + 1]);
-            continue;
-        }
-        const Bindings* b[2] = {&b0, &b1};
-        const Settings settings[2] = {static_cast<const ATrousPass&>(*passes[i]).s_,
-                                      static_cast<const ATrousPass&>(*passes[i + 1]).s_};
-        HWY_DYNAMIC_DISPATCH(filterFast)(ctx, b, 2, settings, ios[i]->idlePlanes());
-    }
-    if (i < ios.size()) passes[i]->execute(ctx, *ios[i]);
-}
-
-void ATrousPass::execute(FrameContext& ctx, PassIO& io) {
-    if (!exact_) {
-        const Bindings b0(io);
-        const Bindings* b[1] = {&b0};
-        HWY_DYNAMIC_DISPATCH(filterFast)(ctx, b, 1, &s_, io.idlePlanes());
-        return;
-    }
-    const Bindings b(io);
-    const reference::ATrousInputs in{&b.color,  b.var,         &b.depth,         &b.normal,
-                                     b.idView,  s_.step,       s_.sigmaZ,        s_.sigmaN,
-                                     s_.sigmaL, s_.sigmaColor, s_.depthPrecision};
-    ctx.parallelRows(ctx.extent.height,
-                     [&](int y0, int y1) { reference::atrous(in, b.outColor, b.outVar, y0, y1); });
-}
 #endif  // HWY_ONCE
