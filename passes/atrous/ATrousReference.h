@@ -10,12 +10,16 @@
 #include <cmath>
 #include <cstdlib>
 
+#include "ATrousPass.h"
+
 namespace kestrel::reference {
 
 struct ATrousInputs {
     const ImageView *color, *var, *depth, *normal, *ids;  ///< var and ids may be null
-    int step = 1;
-    float sigmaZ = 1.f, sigmaN = 128.f, sigmaL = 4.f, sigmaColor = 0.6f;
+    // The pass's defaults.
+    int step = ATrousPass::Params{}.step;
+    float sigmaZ = ATrousPass::Params{}.sigmaZ, sigmaN = ATrousPass::Params{}.sigmaN;
+    float sigmaL = ATrousPass::Params{}.sigmaL, sigmaColor = ATrousPass::Params{}.sigmaColor;
     float depthPrecision = 0.f;  ///< relative step r of the stored depth (0: float)
 };
 

@@ -241,31 +241,89 @@ void borderPixel(int x, int w, int ya, int yb, int y, const RowIo& io, const Par
 // Per-thread scratch: three YCoCg rows (ring), reused across chunks and frames.
 thread_local std::vector<float> tYcc;
 
+/// The pass's bound images; null where an input is not bound or an output not consumed.
+struct Views {
+    const ImageView &cur, &out;
+    const ImageView *hist, *len, *blur, *age;
+};
+
+Views bind(PassIO& io) {
+    const TaaPass::Declaration& d = TaaPass::declaration();
+    auto in = [&](const InputPort& p) { return io.has(p) ? &io.input(p) : nullptr; };
+    return {
+        io.input(d.color),  io.output(d.colorOut),
+        in(d.history),      in(d.historyLength),
+        in(d.resampleBlur), io.has(d.historyLengthOut) ? &io.output(d.historyLengthOut) : nullptr};
+}
+
+/// Rows [ya, yb) without a history: exactly the current colour, and an age of 1.
+void passThroughRows(const Views& v, int w, int ya, int yb) {
+    for (int y = ya; y < yb; ++y) {
+        for (int ch = 0; ch < 3; ++ch) {
+            const float* s = v.cur.row(ch, y);
+            float* d = v.out.row(ch, y);
+            for (int x = 0; x < w; ++x) d[x] = sanitise(s[x]);
+        }
+        if (v.age) std::fill(v.age->row(0, y), v.age->row(0, y) + w, 1.f);
+    }
+}
+
+/// The rows output row y reads; slot(row, ch) is a row's YCoCg channel.
+template <class Slot>
+RowIo rowIo(const Views& v, int y, int h, Slot slot) {
+    const int ra = std::max(0, y - 1), rb = std::min(h - 1, y + 1);
+    RowIo r;
+    for (int ch = 0; ch < 3; ++ch)
+        for (int k = 0; k < 3; ++k) {
+            const int row = y - 1 + k;
+            r.ycc[ch][k] = row >= ra && row <= rb ? slot(row, ch) : nullptr;
+        }
+    r.cr = v.cur.row(0, y);
+    r.cg = v.cur.row(1, y);
+    r.cb = v.cur.row(2, y);
+    r.hr = v.hist->row(0, y);
+    r.hg = v.hist->row(1, y);
+    r.hb = v.hist->row(2, y);
+    r.len = v.len ? v.len->row(0, y) : nullptr;
+    r.blur = v.blur ? v.blur->row(0, y) : nullptr;
+    r.o0 = v.out.row(0, y);
+    r.o1 = v.out.row(1, y);
+    r.o2 = v.out.row(2, y);
+    r.age = v.age ? v.age->row(0, y) : nullptr;
+    return r;
+}
+
+/// One row with a history: the interior vectorised, the border pixels with the window clamped.
+/// ones, zeros, ageSink: the history length, resampling blur and age rows where not bound.
+void resolveRow(int w, int h, int y, RowIo r, const Params& prm, const float* ones,
+                const float* zeros, float* ageSink) {
+    const int ra = std::max(0, y - 1), rb = std::min(h - 1, y + 1);
+    if (y == 0 || y == h - 1 || w < 3) {
+        for (int x = 0; x < w; ++x) borderPixel(x, w, ra, rb, y, r, prm);
+        return;
+    }
+    borderPixel(0, w, ra, rb, y, r, prm);
+    if (!r.len) r.len = ones;  // 1 > 0: valid, as without the input
+    if (!r.blur) r.blur = zeros;
+    if (!r.age) r.age = ageSink;
+    if (prm.clip)
+        prm.antiFlicker ? interiorRow<true, true>(w, r, prm) : interiorRow<true, false>(w, r, prm);
+    else
+        prm.antiFlicker ? interiorRow<false, true>(w, r, prm)
+                        : interiorRow<false, false>(w, r, prm);
+    borderPixel(w - 1, w, ra, rb, y, r, prm);
+}
+
 /// The pass for this target (its parameters as arguments).
-void executeOnTarget(FrameContext& ctx, PassIO& io, float alpha_, float gamma_, bool clip_,
-                     bool antiFlicker_, float blurAlpha_, bool warmUp_) {
-    const ImageView& cur = io.input("color");
-    const ImageView& out = io.output("color");
-    const int w = cur.width(), h = cur.height();
-    const ImageView* hist = io.hasInput("history") ? &io.input("history") : nullptr;
-    const ImageView* len = io.hasInput("historyLength") ? &io.input("historyLength") : nullptr;
-    const ImageView* blur = io.hasInput("resampleBlur") ? &io.input("resampleBlur") : nullptr;
-    const ImageView* age = io.hasOutput("historyLength") ? &io.output("historyLength") : nullptr;
+void executeOnTarget(FrameContext& ctx, PassIO& io, const TaaPass::Params& params) {
+    const Views v = bind(io);
+    const int w = v.cur.width(), h = v.cur.height();
     // The age is only meaningful where historyLength is the fed-back age.
-    const Params prm{alpha_, gamma_, clip_, antiFlicker_, blurAlpha_, warmUp_ && len != nullptr};
+    const Params prm{params.alpha,       params.gamma,     params.mode == TaaPass::Mode::Clip,
+                     params.antiFlicker, params.blurAlpha, params.warmUp && v.len != nullptr};
 
     ctx.parallelRows(h, [&](int ya, int yb) {
-        if (!hist) {  // no history: exactly the current colour, and an age of 1
-            for (int y = ya; y < yb; ++y) {
-                for (int ch = 0; ch < 3; ++ch) {
-                    const float* s = cur.row(ch, y);
-                    float* d = out.row(ch, y);
-                    for (int x = 0; x < w; ++x) d[x] = sanitise(s[x]);
-                }
-                if (age) std::fill(age->row(0, y), age->row(0, y) + w, 1.f);
-            }
-            return;
-        }
+        if (!v.hist) return passThroughRows(v, w, ya, yb);
         // YCoCg of rows y-1, y, y+1 in a ring of three row slots (each chunk converts its
         // rows and the two beside it: no full-frame buffer).
         std::vector<float>& ring = tYcc;
@@ -277,47 +335,14 @@ void executeOnTarget(FrameContext& ctx, PassIO& io, float alpha_, float gamma_, 
         float* ageSink = zeros + w;  // the interior's age when historyLength is not consumed
         auto slot = [&](int row, int ch) { return ring.data() + (size_t(row % 3) * 3 + ch) * w; };
         auto convert = [&](int row) {
-            yccRow(w, cur.row(0, row), cur.row(1, row), cur.row(2, row), slot(row, 0), slot(row, 1),
-                   slot(row, 2));
+            yccRow(w, v.cur.row(0, row), v.cur.row(1, row), v.cur.row(2, row), slot(row, 0),
+                   slot(row, 1), slot(row, 2));
         };
         if (ya > 0) convert(ya - 1);
         convert(ya);
         for (int y = ya; y < yb; ++y) {
             if (y + 1 < h) convert(y + 1);
-            const int ra = std::max(0, y - 1), rb = std::min(h - 1, y + 1);
-            RowIo r;
-            for (int ch = 0; ch < 3; ++ch)
-                for (int k = 0; k < 3; ++k) {
-                    const int row = y - 1 + k;
-                    r.ycc[ch][k] = row >= ra && row <= rb ? slot(row, ch) : nullptr;
-                }
-            r.cr = cur.row(0, y);
-            r.cg = cur.row(1, y);
-            r.cb = cur.row(2, y);
-            r.hr = hist->row(0, y);
-            r.hg = hist->row(1, y);
-            r.hb = hist->row(2, y);
-            r.len = len ? len->row(0, y) : nullptr;
-            r.blur = blur ? blur->row(0, y) : nullptr;
-            r.o0 = out.row(0, y);
-            r.o1 = out.row(1, y);
-            r.o2 = out.row(2, y);
-            r.age = age ? age->row(0, y) : nullptr;
-            if (y == 0 || y == h - 1 || w < 3) {
-                for (int x = 0; x < w; ++x) borderPixel(x, w, ra, rb, y, r, prm);
-                continue;
-            }
-            borderPixel(0, w, ra, rb, y, r, prm);
-            if (!r.len) r.len = ones;  // 1 > 0: valid, as without the input
-            if (!r.blur) r.blur = zeros;
-            if (!r.age) r.age = ageSink;
-            if (prm.clip)
-                prm.antiFlicker ? interiorRow<true, true>(w, r, prm)
-                                : interiorRow<true, false>(w, r, prm);
-            else
-                prm.antiFlicker ? interiorRow<false, true>(w, r, prm)
-                                : interiorRow<false, false>(w, r, prm);
-            borderPixel(w - 1, w, ra, rb, y, r, prm);
+            resolveRow(w, h, y, rowIo(v, y, h, slot), prm, ones, zeros, ageSink);
         }
     });
 }
@@ -332,70 +357,72 @@ namespace {
 HWY_EXPORT(executeOnTarget);
 }  // namespace
 
-PassDesc TaaPass::describe() {
-    PassDesc d("TAA",
-               "Temporal anti-aliasing: blends the reprojected previous output, clipped to the "
-               "current 3x3 neighbourhood in YCoCg, with the current colour");
-    d.input("color", Format::Float3, "current frame colour")
-        .optionalInput("history", Format::Float3,
-                       "previous TAA output reprojected to this frame (Catmull-Rom resampled)")
-        .optionalInput("historyLength", Format::Float,
-                       "reprojection validity: 0 where disoccluded (history dropped there)")
-        .output("color", Format::Float3, "anti-aliased colour (feed back through a history edge)")
-        .output("historyLength", Format::Float,
-                "frames in the result: historyLength + 1 where the history was used (at most "
-                "255), else 1; fed back through the reprojection's prevHistoryLength for warmUp")
-        .optionalInput("resampleBlur", Format::Float,
-                       "how much resampling blurred the history, in [0, 1] (Reprojection's "
-                       "resampleBlur): the current frame's weight rises towards blurAlpha with it")
-        .paramFloat("alpha", 0.1, 0.0, 1.0, "weight of the current frame in the blend")
-        .paramFloat("blurAlpha", 1.0, 0.0, 1.0,
-                    "weight of the current frame where the history was resampled midway between "
-                    "pixels (resampleBlur 1)")
-        .paramFloat("gamma", 1.0, 0.0, 100.0,
-                    "neighbourhood box half-width in standard deviations (variance clipping)")
-        .paramEnum("mode", "clip", {"clip", "clamp"},
-                   "clip: move the history towards the mean onto the box; clamp: per channel")
-        .paramBool("onlyAntiAliased", false,
-                   "leave TAA out (pass the colour through) unless the source states the render "
-                   "is anti-aliased (the scene fact antiAliased): on a point-sampled render "
-                   "judged against a point-sampled reference the history has no detail to add")
-        .paramBool("warmUp", false,
-                   "historyLength is this pass's own historyLength output, fed back through the "
-                   "reprojection: the current frame's weight is at least 2 / (n + 1) in a history "
-                   "of n frames (inverse-variance weights of an input whose noise falls as 1/n, as "
-                   "a denoiser's does after a disocclusion), so the first frames do not linger")
-        .paramBool("antiFlicker", true,
-                   "inverse-luminance blend weights (Karis 2014): damps flicker of bright pixels");
+TaaPass::Declaration::Declaration()
+    : kestrel::Declaration<Params>(
+          "TAA",
+          "Temporal anti-aliasing: blends the reprojected previous output, clipped to the "
+          "current 3x3 neighbourhood in YCoCg, with the current colour") {
+    color = input("color", Format::Float3, "current frame colour");
+    history =
+        optionalInput("history", Format::Float3,
+                      "previous TAA output reprojected to this frame (Catmull-Rom resampled)");
+    historyLength =
+        optionalInput("historyLength", Format::Float,
+                      "reprojection validity: 0 where disoccluded (history dropped there)");
+    colorOut =
+        output("color", Format::Float3, "anti-aliased colour (feed back through a history edge)");
+    historyLengthOut =
+        output("historyLength", Format::Float,
+               "frames in the result: historyLength + 1 where the history was used (at most "
+               "255), else 1; fed back through the reprojection's prevHistoryLength for warmUp");
+    resampleBlur =
+        optionalInput("resampleBlur", Format::Float,
+                      "how much resampling blurred the history, in [0, 1] (Reprojection's "
+                      "resampleBlur): the current frame's weight rises towards blurAlpha "
+                      "with it");
+    paramDecimal("alpha", &Params::alpha, 0.0, 1.0, "weight of the current frame in the blend");
+    paramDecimal("blurAlpha", &Params::blurAlpha, 0.0, 1.0,
+                 "weight of the current frame where the history was resampled midway between "
+                 "pixels (resampleBlur 1)");
+    paramDecimal("gamma", &Params::gamma, 0.0, 100.0,
+                 "neighbourhood box half-width in standard deviations (variance clipping)");
+    param("mode", &Params::mode, {"clip", "clamp"},
+          "clip: move the history towards the mean onto the box; clamp: per channel");
+    param("onlyAntiAliased", &Params::onlyAntiAliased,
+          "leave TAA out (pass the colour through) unless the source states the render "
+          "is anti-aliased (the scene fact antiAliased): on a point-sampled render "
+          "judged against a point-sampled reference the history has no detail to add");
+    param("warmUp", &Params::warmUp,
+          "historyLength is this pass's own historyLength output, fed back through the "
+          "reprojection: the current frame's weight is at least 2 / (n + 1) in a history "
+          "of n frames (inverse-variance weights of an input whose noise falls as 1/n, as "
+          "a denoiser's does after a disocclusion), so the first frames do not linger");
+    param("antiFlicker", &Params::antiFlicker,
+          "inverse-luminance blend weights (Karis 2014): damps flicker of bright pixels");
+}
+
+const TaaPass::Declaration& TaaPass::declaration() {
+    static const Declaration d;
     return d;
 }
 
-TaaPass::TaaPass(const ParamValues& params)
-    : alpha_(params.getFloat("alpha")),
-      gamma_(params.getFloat("gamma")),
-      clip_(params.getString("mode") == "clip"),
-      antiFlicker_(params.getBool("antiFlicker")),
-      blurAlpha_(params.getFloat("blurAlpha")),
-      warmUp_(params.getBool("warmUp")),
-      onlyAntiAliased_(params.getBool("onlyAntiAliased")) {}
-
 void TaaPass::resolve(ResolveContext& rc) {
-    if (onlyAntiAliased_ && rc.fact("antiAliased") != "true") {
-        rc.forward("color", "color");
-        rc.setAbsent("historyLength", "TAA is left out");
+    const Declaration& d = declaration();
+    if (p_.onlyAntiAliased && rc.fact("antiAliased") != "true") {
+        rc.forward(d.colorOut, d.color);
+        rc.setAbsent(d.historyLengthOut, "TAA is left out");
         rc.note("point-sampled render: TAA left out (onlyAntiAliased)");
         return;
     }
-    if (!rc.isBound("history")) {
-        rc.forward("color", "color");
-        rc.setAbsent("historyLength", "no history bound");
+    if (!rc.isBound(d.history)) {
+        rc.forward(d.colorOut, d.color);
+        rc.setAbsent(d.historyLengthOut, "no history bound");
         rc.note("no history bound: TAA passes the current colour through");
     }
 }
 
 void TaaPass::execute(FrameContext& ctx, PassIO& io) {
-    HWY_DYNAMIC_DISPATCH(executeOnTarget)
-    (ctx, io, alpha_, gamma_, clip_, antiFlicker_, blurAlpha_, warmUp_);
+    HWY_DYNAMIC_DISPATCH(executeOnTarget)(ctx, io, p_);
 }
 
 }  // namespace kestrel::passes

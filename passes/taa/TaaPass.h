@@ -34,19 +34,31 @@ namespace kestrel::passes {
 
 class TaaPass final : public Pass {
 public:
-    static PassDesc describe();
-    explicit TaaPass(const ParamValues& params);
+    enum class Mode { Clip, Clamp };
+    struct Params {
+        float alpha = 0.1f;
+        float blurAlpha = 1.f;
+        float gamma = 1.f;
+        Mode mode = Mode::Clip;
+        bool onlyAntiAliased = false;
+        bool warmUp = false;
+        bool antiFlicker = true;
+    };
+    /// Ports and parameters, declared once (kestrel/Declare.h).
+    struct Declaration : kestrel::Declaration<Params> {
+        Declaration();
+        InputPort color, history, historyLength, resampleBlur;
+        OutputPort colorOut, historyLengthOut;
+    };
+    static const Declaration& declaration();
+
+    static PassDesc describe() { return declaration().desc(); }
+    explicit TaaPass(const ParamValues& params) : p_(declaration().read(params)) {}
     void resolve(ResolveContext& rc) override;
     void execute(FrameContext& ctx, PassIO& io) override;
 
 private:
-    float alpha_ = 0.1f;
-    float gamma_ = 1.f;
-    bool clip_ = true;
-    bool antiFlicker_ = true;
-    float blurAlpha_ = 1.f;
-    bool warmUp_ = false;
-    bool onlyAntiAliased_ = false;
+    Params p_;
 };
 
 }  // namespace kestrel::passes

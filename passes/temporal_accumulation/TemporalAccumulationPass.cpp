@@ -185,26 +185,85 @@ void borderPixel(int w, int x, const Params& p, const Row& r) {
 // Per-thread scratch: three luminance rows (ring), neutral input rows and output sinks.
 thread_local std::vector<float> tScratch;
 
+/// The pass's bound images; null where an input is not fed or an output not consumed.
+struct Views {
+    const ImageView& color;
+    const ImageView *prevC, *prevM, *prevH;
+    const ImageView& outC;
+    const ImageView *outM, *outH, *outV;
+    firefly::Excess* excess;  ///< where the clamp's excess goes (null: dropped)
+};
+
+Views bind(PassIO& io, firefly::Excess* excess) {
+    const TemporalAccumulationPass::Declaration& d = TemporalAccumulationPass::declaration();
+    // Colour and moments histories are used only with a history length.
+    const bool hasHist = io.has(d.prevHistoryLength);
+    auto in = [&](const InputPort& p) { return hasHist && io.has(p) ? &io.input(p) : nullptr; };
+    auto out = [&](const OutputPort& p) { return io.has(p) ? &io.output(p) : nullptr; };
+    return {io.input(d.color),       in(d.prevColor),       in(d.prevMoments),
+            in(d.prevHistoryLength), io.output(d.colorOut), out(d.moments),
+            out(d.historyLength),    out(d.variance),       excess};
+}
+
+/// Row y's planes: `zeros` for the inputs not fed (history length 0 makes every pixel
+/// history-less, colour and moments are then not used), `sink` for the outputs not consumed;
+/// lum(y) is row y's luminance.
+template <class Lum>
+Row rowAt(const Views& v, int y, int h, Lum lum, const float* zeros, float* const* sink) {
+    Row r;
+    r.c0 = v.color.row(0, y);
+    r.c1 = v.color.row(1, y);
+    r.c2 = v.color.row(2, y);
+    r.p0 = v.prevC ? v.prevC->row(0, y) : zeros;
+    r.p1 = v.prevC ? v.prevC->row(1, y) : zeros;
+    r.p2 = v.prevC ? v.prevC->row(2, y) : zeros;
+    r.pm0 = v.prevM ? v.prevM->row(0, y) : zeros;
+    r.pm1 = v.prevM ? v.prevM->row(1, y) : zeros;
+    r.pl = v.prevH ? v.prevH->row(0, y) : zeros;
+    r.up = y > 0;
+    r.down = y + 1 < h;
+    r.lu = lum(r.up ? y - 1 : y);
+    r.lc = lum(y);
+    r.ld = lum(r.down ? y + 1 : y);
+    r.o0 = v.outC.row(0, y);
+    r.o1 = v.outC.row(1, y);
+    r.o2 = v.outC.row(2, y);
+    r.om0 = v.outM ? v.outM->row(0, y) : sink[0];
+    r.om1 = v.outM ? v.outM->row(1, y) : sink[1];
+    r.oh = v.outH ? v.outH->row(0, y) : sink[2];
+    r.ov = v.outV ? v.outV->row(0, y) : sink[3];
+    const size_t at = size_t(y) * size_t(v.color.width());
+    r.e0 = v.excess ? v.excess->plane(0) + at : sink[4];
+    r.e1 = v.excess ? v.excess->plane(1) + at : sink[5];
+    r.e2 = v.excess ? v.excess->plane(2) + at : sink[6];
+    r.eb = v.excess ? v.excess->plane(3) + at : sink[7];
+    return r;
+}
+
+/// One row: the interior vectorised, the border pixels with the neighbours that exist.
+template <bool C, bool M>
+void runRow(int w, int h, int y, const Params& prm, const Row& r) {
+    if (y == 0 || y == h - 1 || w < 3) {
+        for (int x = 0; x < w; ++x) borderPixel<C, M>(w, x, prm, r);
+        return;
+    }
+    borderPixel<C, M>(w, 0, prm, r);
+    interiorRow<C, M>(w, prm, r);
+    borderPixel<C, M>(w, w - 1, prm, r);
+}
+
 /// The pass for this target (its parameters as arguments).
-void executeOnTarget(FrameContext& ctx, PassIO& io, float alpha_, float momentsAlpha_,
-                     float maxHistory_, float fireflySigma_, firefly::Excess* excess) {
+void executeOnTarget(FrameContext& ctx, PassIO& io, const TemporalAccumulationPass::Params& p,
+                     firefly::Excess* excess) {
     const int w = ctx.extent.width, h = ctx.extent.height;
-    const ImageView& color = io.input("color");
-    const bool hasHist = io.hasInput("prevHistoryLength");
-    const ImageView* prevC = hasHist && io.hasInput("prevColor") ? &io.input("prevColor") : nullptr;
-    const ImageView* prevM =
-        hasHist && io.hasInput("prevMoments") ? &io.input("prevMoments") : nullptr;
-    const ImageView* prevH = hasHist ? &io.input("prevHistoryLength") : nullptr;
-    const ImageView& outC = io.output("color");
-    const ImageView* outM = io.hasOutput("moments") ? &io.output("moments") : nullptr;
-    const ImageView* outH = io.hasOutput("historyLength") ? &io.output("historyLength") : nullptr;
-    const ImageView* outV = io.hasOutput("variance") ? &io.output("variance") : nullptr;
-    const Params prm{alpha_, momentsAlpha_, maxHistory_, fireflySigma_};
-    const bool hasC = prevC != nullptr, hasM = prevM != nullptr;
+    const Views v = bind(io, excess);
+    const Params prm{p.alpha, p.momentsAlpha, p.maxHistoryLength, p.fireflySigma};
+    const bool hasC = v.prevC != nullptr, hasM = v.prevM != nullptr;
+    auto run = hasC ? (hasM ? runRow<true, true> : runRow<true, false>)
+                    : (hasM ? runRow<false, true> : runRow<false, false>);
 
     ctx.parallelRows(h, [&](int ya, int yb) {
-        // Scratch rows: 3 luminance (ring), 1 zeros (inputs not fed: history length 0 makes
-        // every pixel history-less, colour and moments are then not used), 4 output sinks.
+        // Scratch rows: 3 luminance (ring), 1 zeros, 8 output sinks (see rowAt).
         std::vector<float>& sc = tScratch;
         if (sc.size() < size_t(w) * 12) sc.resize(size_t(w) * 12);
         auto lumRow = [&](int y) { return sc.data() + size_t(y % 3) * w; };
@@ -219,55 +278,13 @@ void executeOnTarget(FrameContext& ctx, PassIO& io, float alpha_, float momentsA
                           zeros + 7 * size_t(w),
                           zeros + 8 * size_t(w)};
         auto convert = [&](int y) {
-            luminanceRow(w, color.row(0, y), color.row(1, y), color.row(2, y), lumRow(y));
+            luminanceRow(w, v.color.row(0, y), v.color.row(1, y), v.color.row(2, y), lumRow(y));
         };
         if (ya > 0) convert(ya - 1);
         convert(ya);
         for (int y = ya; y < yb; ++y) {
             if (y + 1 < h) convert(y + 1);
-            Row r;
-            r.c0 = color.row(0, y);
-            r.c1 = color.row(1, y);
-            r.c2 = color.row(2, y);
-            r.p0 = prevC ? prevC->row(0, y) : zeros;
-            r.p1 = prevC ? prevC->row(1, y) : zeros;
-            r.p2 = prevC ? prevC->row(2, y) : zeros;
-            r.pm0 = prevM ? prevM->row(0, y) : zeros;
-            r.pm1 = prevM ? prevM->row(1, y) : zeros;
-            r.pl = prevH ? prevH->row(0, y) : zeros;
-            r.up = y > 0;
-            r.down = y + 1 < h;
-            r.lu = lumRow(r.up ? y - 1 : y);
-            r.lc = lumRow(y);
-            r.ld = lumRow(r.down ? y + 1 : y);
-            r.o0 = outC.row(0, y);
-            r.o1 = outC.row(1, y);
-            r.o2 = outC.row(2, y);
-            r.om0 = outM ? outM->row(0, y) : sink[0];
-            r.om1 = outM ? outM->row(1, y) : sink[1];
-            r.oh = outH ? outH->row(0, y) : sink[2];
-            r.ov = outV ? outV->row(0, y) : sink[3];
-            const size_t at = size_t(y) * size_t(w);
-            r.e0 = excess ? excess->plane(0) + at : sink[4];
-            r.e1 = excess ? excess->plane(1) + at : sink[5];
-            r.e2 = excess ? excess->plane(2) + at : sink[6];
-            r.eb = excess ? excess->plane(3) + at : sink[7];
-            auto run = [&](auto hasC, auto hasM) {
-                constexpr bool C = decltype(hasC)::value, M = decltype(hasM)::value;
-                if (y == 0 || y == h - 1 || w < 3) {
-                    for (int x = 0; x < w; ++x) borderPixel<C, M>(w, x, prm, r);
-                    return;
-                }
-                borderPixel<C, M>(w, 0, prm, r);
-                interiorRow<C, M>(w, prm, r);
-                borderPixel<C, M>(w, w - 1, prm, r);
-            };
-            using T = std::true_type;
-            using F = std::false_type;
-            if (hasC)
-                hasM ? run(T{}, T{}) : run(T{}, F{});
-            else
-                hasM ? run(F{}, T{}) : run(F{}, F{});
+            run(w, h, y, prm, rowAt(v, y, h, lumRow, zeros, sink));
         }
     });
 }
@@ -285,64 +302,67 @@ HWY_EXPORT(executeOnTarget);
 
 using namespace kestrel;
 
-PassDesc TemporalAccumulationPass::describe() {
-    PassDesc d("TemporalAccumulation",
-               "SVGF temporal filter: blends the illumination and its luminance moments with the"
-               " reprojected history (alpha = max(alpha, 1/historyLength)); outputs the temporal"
-               " variance. Fireflies are clamped before they enter the history.");
-    d.input("color", Format::Float3, "current (demodulated) illumination")
-        .optionalInput("prevColor", Format::Float3, "reprojected history illumination")
-        .optionalInput("prevMoments", Format::Float2, "reprojected history moments (l, l^2)")
-        .optionalInput("prevHistoryLength", Format::Float,
-                       "reprojected history length; 0 (or unbound) means no history")
-        .output("color", Format::Float3, "accumulated illumination")
-        .inPlaceOf("prevColor")
-        .output("moments", Format::Float2, "accumulated luminance moments (l, l^2)")
-        .output("historyLength", Format::Float,
-                "min(maxHistoryLength, prev + 1), 1 without history")
-        .output("variance", Format::Float, "temporal luminance variance max(0, m2 - m1^2)")
-        .inPlaceOf("prevHistoryLength")
-        .paramFloat("alpha", 0.2, 0.0, 1.0, "minimum blend weight of the current colour")
-        .paramFloat("momentsAlpha", 0.2, 0.0, 1.0, "minimum blend weight of the current moments")
-        .paramFloat("maxHistoryLength", 32.0, 1.0, 1e6, "cap of the history length")
-        .optionalInput("depth", Format::Float,
-                       "linear depth: with normal, the surface the firefly clamp's excess may be "
-                       "spread over (fireflySpread)")
-        .optionalInput("normal", Format::Float3, "world normal (see depth)")
-        .optionalInput("objectId", Format::Int32, "object id: the excess stays on its object")
-        .paramInt(
-            "fireflySpread", 0, 0, firefly::kMaxRadius,
-            "radius in px over which what the firefly clamp takes off a sample with a "
-            "history is spread on the same surface (depth, normal, object id) instead of "
-            "dropped, in the share fireflyFullShare sets (0 = dropped; needs depth and normal)")
-        .paramFloat("fireflyFullShare", 0.2, 1e-6, 1.0,
-                    "the clamped share of a window's light at which all the excess is spread; "
-                    "below it, the spread part falls linearly (a noise tail is dropped, light "
-                    "the 1-spp frames reach only rarely is kept)")
-        .paramFloat("fireflySigma", 3.0, 0.0, 1e6,
-                    "firefly clamp: a sample brighter than mean + k*stddev of its 8 neighbours AND"
-                    " of its own history is scaled down to that bound, a negative sample below"
-                    " mean - k*stddev of its history up to it, at most 0 (k = this; 0 = off)");
+TemporalAccumulationPass::Declaration::Declaration()
+    : kestrel::Declaration<Params>(
+          "TemporalAccumulation",
+          "SVGF temporal filter: blends the illumination and its luminance moments with the"
+          " reprojected history (alpha = max(alpha, 1/historyLength)); outputs the temporal"
+          " variance. Fireflies are clamped before they enter the history.") {
+    color = input("color", Format::Float3, "current (demodulated) illumination");
+    prevColor = optionalInput("prevColor", Format::Float3, "reprojected history illumination");
+    prevMoments =
+        optionalInput("prevMoments", Format::Float2, "reprojected history moments (l, l^2)");
+    prevHistoryLength =
+        optionalInput("prevHistoryLength", Format::Float,
+                      "reprojected history length; 0 (or unbound) means no history");
+    // pointwise on both pairs: each pixel's history is read before it is written
+    colorOut = output("color", Format::Float3, "accumulated illumination", &prevColor);
+    moments = output("moments", Format::Float2, "accumulated luminance moments (l, l^2)");
+    historyLength = output("historyLength", Format::Float,
+                           "min(maxHistoryLength, prev + 1), 1 without history");
+    variance = output("variance", Format::Float, "temporal luminance variance max(0, m2 - m1^2)",
+                      &prevHistoryLength);
+    paramDecimal("alpha", &Params::alpha, 0.0, 1.0, "minimum blend weight of the current colour");
+    paramDecimal("momentsAlpha", &Params::momentsAlpha, 0.0, 1.0,
+                 "minimum blend weight of the current moments");
+    paramDecimal("maxHistoryLength", &Params::maxHistoryLength, 1.0, 1e6,
+                 "cap of the history length");
+    depth = optionalInput("depth", Format::Float,
+                          "linear depth: with normal, the surface the firefly clamp's excess may "
+                          "be spread over (fireflySpread)");
+    normal = optionalInput("normal", Format::Float3, "world normal (see depth)");
+    objectId =
+        optionalInput("objectId", Format::Int32, "object id: the excess stays on its object");
+    param("fireflySpread", &Params::fireflySpread, 0, firefly::kMaxRadius,
+          "radius in px over which what the firefly clamp takes off a sample with a "
+          "history is spread on the same surface (depth, normal, object id) instead of "
+          "dropped, in the share fireflyFullShare sets (0 = dropped; needs depth and normal)");
+    paramDecimal("fireflyFullShare", &Params::fireflyFullShare, 1e-6, 1.0,
+                 "the clamped share of a window's light at which all the excess is spread; "
+                 "below it, the spread part falls linearly (a noise tail is dropped, light "
+                 "the 1-spp frames reach only rarely is kept)");
+    paramDecimal("fireflySigma", &Params::fireflySigma, 0.0, 1e6,
+                 "firefly clamp: a sample brighter than mean + k*stddev of its 8 neighbours AND"
+                 " of its own history is scaled down to that bound, a negative sample below"
+                 " mean - k*stddev of its history up to it, at most 0 (k = this; 0 = off)");
+}
+
+const TemporalAccumulationPass::Declaration& TemporalAccumulationPass::declaration() {
+    static const Declaration d;
     return d;
 }
 
-TemporalAccumulationPass::TemporalAccumulationPass(const ParamValues& p)
-    : alpha_(p.getFloat("alpha")),
-      momentsAlpha_(p.getFloat("momentsAlpha")),
-      maxHistory_(p.getFloat("maxHistoryLength")),
-      fireflySigma_(p.getFloat("fireflySigma")),
-      spread_{int(p.getInt("fireflySpread")), firefly::kMaxBoundsPerPixel,
-              p.getFloat("fireflyFullShare")} {}
-
 void TemporalAccumulationPass::execute(FrameContext& ctx, PassIO& io) {
-    const bool spread = spread_.radius > 0 && fireflySigma_ > 0.f && io.hasInput("depth") &&
-                        io.hasInput("normal") && io.hasInput("prevHistoryLength");
+    const Declaration& d = declaration();
+    const bool spread = p_.fireflySpread > 0 && p_.fireflySigma > 0.f && io.has(d.depth) &&
+                        io.has(d.normal) && io.has(d.prevHistoryLength);
     if (spread) excess_.reset(ctx.extent.width, ctx.extent.height);
-    HWY_DYNAMIC_DISPATCH(executeOnTarget)
-    (ctx, io, alpha_, momentsAlpha_, maxHistory_, fireflySigma_, spread ? &excess_ : nullptr);
+    HWY_DYNAMIC_DISPATCH(executeOnTarget)(ctx, io, p_, spread ? &excess_ : nullptr);
     if (!spread) return;
-    const firefly::Surface surface{&io.input("depth"), &io.input("normal"),
-                                   io.hasInput("objectId") ? &io.input("objectId") : nullptr};
-    firefly::spreadExcess(ctx, excess_, surface, spread_, io.output("color"));
+    const firefly::Surface surface{&io.input(d.depth), &io.input(d.normal),
+                                   io.has(d.objectId) ? &io.input(d.objectId) : nullptr};
+    const firefly::SpreadSettings settings{p_.fireflySpread, firefly::kMaxBoundsPerPixel,
+                                           p_.fireflyFullShare};
+    firefly::spreadExcess(ctx, excess_, surface, settings, io.output(d.colorOut));
 }
 #endif  // HWY_ONCE

@@ -9,12 +9,28 @@
 
 class TemporalAccumulationPass final : public kestrel::Pass {
 public:
-    static kestrel::PassDesc describe();
-    explicit TemporalAccumulationPass(const kestrel::ParamValues& p);
+    struct Params {
+        float alpha = 0.2f;
+        float momentsAlpha = 0.2f;
+        float maxHistoryLength = 32.f;
+        float fireflySigma = 3.f;
+        int fireflySpread = 0;          ///< FireflySpread.h
+        float fireflyFullShare = 0.2f;  ///< FireflySpread.h
+    };
+    /// Ports and parameters, declared once (kestrel/Declare.h).
+    struct Declaration : kestrel::Declaration<Params> {
+        Declaration();
+        kestrel::InputPort color, prevColor, prevMoments, prevHistoryLength, depth, normal,
+            objectId;
+        kestrel::OutputPort colorOut, moments, historyLength, variance;
+    };
+    static const Declaration& declaration();
+
+    static kestrel::PassDesc describe() { return declaration().desc(); }
+    explicit TemporalAccumulationPass(const kestrel::ParamValues& p) : p_(declaration().read(p)) {}
     void execute(kestrel::FrameContext& ctx, kestrel::PassIO& io) override;
 
 private:
-    float alpha_, momentsAlpha_, maxHistory_, fireflySigma_;
-    kestrel::firefly::SpreadSettings spread_;
+    Params p_;
     kestrel::firefly::Excess excess_;  ///< this frame's clamped excess (only when spreading)
 };

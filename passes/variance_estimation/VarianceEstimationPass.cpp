@@ -151,7 +151,8 @@ void prepareRow(const Inputs& in, std::span<const Signal> sig, int y, float* con
 /// [x0 - 3, x0 + lanes + 3), from the band's prepared planes (row y at (y - base) * width), for
 /// S of the signals, sig[which[0]] .. sig[which[S - 1]], with the same weights (S = 2 only
 /// without a luminance term). Signal g's lanes outside need[g] keep the pass-through values
-/// already stored.
+/// already stored. One function of ~90 lines, a kernel: the centre's terms and the S signals'
+/// accumulators stay in registers through the 49 taps, which a split would pass through memory.
 template <int S>
 void estimateBlock(const Inputs& in, std::span<const Signal> sig, const int* which, float* const* P,
                    int base, int x0, int y, const VF* hl, const MF* need) {
@@ -243,133 +244,163 @@ void estimateBlock(const Inputs& in, std::span<const Signal> sig, const int* whi
     }
 }
 
+/// A row's blocks of one vector (the vector path's pixels x = 3 + k n .. 3 + (k + 1) n, and a
+/// last one ending at w - 3). Which pixels take which path depends only on the width, never on
+/// the thread count or the banding.
+struct Blocks {
+    int w, n, whole, count, scalarFrom;
+    explicit Blocks(int width) : w(width), n(int(hn::Lanes(DF()))) {
+        whole = w >= 2 * kRadius + n ? (w - 2 * kRadius) / n : 0;
+        // A last block ends at w - kRadius where whole blocks leave a gap (it overlaps the one
+        // before it, whose pixels it computes again to the same values): only the kRadius
+        // columns at either border, whose taps leave the image, take the plain scalar code.
+        const bool tail = whole > 0 && kRadius + whole * n < w - kRadius;
+        count = whole + int(tail);
+        scalarFrom = tail ? w - kRadius : kRadius + whole * n;
+    }
+    int x(int k) const { return k < whole ? kRadius + k * n : w - kRadius - n; }
+};
+
+/// Rows [y0, y1) of each signal: the temporal estimate passed through everywhere (sanitised);
+/// need[k] set where block k holds a pixel with a short history. Returns whether a border
+/// pixel (the scalar code's) has one; anyBlock: whether a block has.
+bool passThrough(std::span<const Signal> sig, const Blocks& b, int y0, int y1,
+                 std::vector<uint8_t>& need, bool& anyBlock) {
+    const DF d;
+    const int w = b.w;
+    bool anyScalar = false;
+    for (const Signal& s : sig) {
+        const VF minH = hn::Set(d, s.minHist);
+        for (int y = y0; y < y1; ++y) {
+            float* oc[3] = {s.outC->row(0, y), s.outC->row(1, y), s.outC->row(2, y)};
+            const float* hrow = s.hist->row(0, y);
+            for (int c = 0; c < 3; ++c) {
+                const float* src = s.color->row(c, y);
+                for (int x = 0; x < w; ++x) oc[c][x] = px::sanitize(src[x]);
+            }
+            if (s.outV) {
+                const float* src = s.var->row(0, y);
+                float* ov = s.outV->row(0, y);
+                for (int x = 0; x < w; ++x) ov[x] = px::sanitizePositive(src[x], 1e32f);
+            }
+            auto isShort = [&](int x) {
+                return !(px::sanitizePositive(hrow[x], 1e6f) >= s.minHist);
+            };
+            for (int x = 0; x < std::min(kRadius, w); ++x) anyScalar |= isShort(x);
+            for (int x = b.scalarFrom; x < w; ++x) anyScalar |= isShort(x);
+            for (int k = 0; k < b.count; ++k) {
+                const VF hl = simd::sanitizePositive(hn::LoadU(d, hrow + b.x(k)), 1e6f);
+                const bool sh = !hn::AllFalse(d, hn::Lt(hl, minH));
+                need[size_t(k)] |= uint8_t(sh);
+                anyBlock |= sh;
+            }
+        }
+    }
+    return anyScalar;
+}
+
+/// The border pixels of rows [y0, y1) with a short history, reading the inputs directly.
+void estimateBorders(const Inputs& in, std::span<const Signal> sig, const Blocks& b, int y0,
+                     int y1) {
+    const int w = b.w;
+    for (const Signal& s : sig)
+        for (int y = y0; y < y1; ++y) {
+            float* oc[3] = {s.outC->row(0, y), s.outC->row(1, y), s.outC->row(2, y)};
+            float* ov = s.outV ? s.outV->row(0, y) : nullptr;
+            const float* hrow = s.hist->row(0, y);
+            auto scalarAt = [&](int x) {
+                const float hl = px::sanitizePositive(hrow[x], 1e6f);
+                if (hl >= s.minHist) return;
+                float c3[3], v;
+                estimatePixel(in, s, x, y, hl, c3, &v);
+                for (int c = 0; c < 3; ++c) oc[c][x] = c3[c];
+                if (ov) ov[x] = v;
+            };
+            for (int x = 0; x < std::min(kRadius, w); ++x) scalarAt(x);
+            for (int x = std::max(b.scalarFrom, kRadius); x < w; ++x) scalarAt(x);
+        }
+}
+
+/// Prepares the needed blocks' columns (with the taps' reach of 3 on either side) of rows
+/// [base, p1) into P, runs of needed blocks at once.
+void prepareBlocks(const Inputs& in, std::span<const Signal> sig, const Blocks& b,
+                   const std::vector<uint8_t>& need, float* const* P, int base, int p1) {
+    for (int k0 = 0; k0 < b.count;) {
+        if (!need[size_t(k0)]) {
+            ++k0;
+            continue;
+        }
+        int k1 = k0 + 1;
+        while (k1 < b.count && need[size_t(k1)]) ++k1;
+        for (int y = base; y < p1; ++y)
+            prepareRow(in, sig, y, P, size_t(y - base) * size_t(b.w), b.x(k0) - kRadius,
+                       b.x(k1 - 1) + b.n + kRadius);
+        k0 = k1;
+    }
+}
+
+/// The needed blocks of rows [y0, y1), from the prepared planes P (row `base` first).
+void estimateBlocks(const Inputs& in, std::span<const Signal> sig, const Blocks& b,
+                    const std::vector<uint8_t>& need, float* const* P, int base, int y0, int y1) {
+    const DF d;
+    const int S = int(sig.size());
+    for (int y = y0; y < y1; ++y)
+        for (int k = 0; k < b.count; ++k) {
+            if (!need[size_t(k)]) continue;
+            const int x = b.x(k);
+            VF hl[2];
+            MF needLanes[2];
+            int which[2], count = 0;  // the signals with a short pixel here
+            for (int g = 0; g < S; ++g) {
+                const Signal& s = sig[size_t(g)];
+                hl[g] = simd::sanitizePositive(hn::LoadU(d, s.hist->row(0, y) + x), 1e6f);
+                needLanes[g] = hn::Lt(hl[g], hn::Set(d, s.minHist));
+                if (!hn::AllFalse(d, needLanes[g])) which[count++] = g;
+            }
+            // Both signals weighed at once only where both need it: a pair's short pixels
+            // overlap only in part (anti-lag shortens each chain's history on its own).
+            if (count == 2)
+                estimateBlock<2>(in, sig, which, P, base, x, y, hl, needLanes);
+            else if (count == 1)
+                estimateBlock<1>(in, sig, which, P, base, x, y, hl, needLanes);
+        }
+}
+
 /// The fast path (everything but `exact`) for this target, for one signal or a pair with the
 /// same weights (VarianceEstimationPass::executeFused): each pixel's estimate is the one the
 /// signal would get alone, to the bit.
 void estimate(FrameContext& ctx, const Inputs& in, std::span<const Signal> sig,
               std::span<float* const> idle) {
     ScratchArena arena(idle, ctx.extent.pixels());  // scratch from idle planes where they suffice
-    const DF d;
-    const int n = int(hn::Lanes(d));
     const int w = in.w, S = int(sig.size());
-    // Bands of rows, each with private scratch for its prepared rows (ScratchPool). The rows are
-    // split into blocks of one vector (the vector path's pixels x = 3 + k n .. 3 + (k + 1) n,
-    // and a last one ending at w - 3);
-    // only the columns of blocks holding a pixel with a short history (in any signal) are
-    // prepared, which in steady state is a few percent (disocclusions), not every band as soon
-    // as one pixel of it is short (a pan disoccludes a column at the image's edge in every
-    // band). Which pixels take which path depends only on the width, never on the thread count
-    // or the banding.
+    // Bands of rows, each with private scratch for its prepared rows (ScratchPool). Only the
+    // columns of blocks holding a pixel with a short history (in any signal) are prepared, which
+    // in steady state is a few percent (disocclusions), not every band as soon as one pixel of
+    // it is short (a pan disoccludes a column at the image's edge in every band).
     constexpr int kBand = 32;
     const int bands = (in.h + kBand - 1) / kBand;
     const size_t bandPixels = size_t(std::min(in.h, kBand + 2 * kRadius)) * size_t(w);
-    const int whole = w >= 2 * kRadius + n ? (w - 2 * kRadius) / n : 0;
-    // A last block ends at w - kRadius where whole blocks leave a gap (it overlaps the one
-    // before it, whose pixels it computes again to the same values): only the kRadius columns
-    // at either border, whose taps leave the image, take the plain scalar code.
-    const bool tail = whole > 0 && kRadius + whole * n < w - kRadius;
-    const int blocks = whole + int(tail);
-    const int scalarFrom = tail ? w - kRadius : kRadius + whole * n;
-    auto blockX = [&](int k) { return k < whole ? kRadius + k * n : w - kRadius - n; };
+    const Blocks blocks(w);
     ctx.parallel->forRange(
         0, bands,
         [&](int i0, int i1) {
             thread_local std::vector<uint8_t> need;  // per block: prepare and estimate
-            need.resize(static_cast<size_t>(blocks));
+            need.resize(static_cast<size_t>(blocks.count));
             for (int i = i0; i < i1; ++i) {
                 const int y0 = i * kBand, y1 = std::min(in.h, y0 + kBand);
                 std::fill(need.begin(), need.end(), uint8_t(0));
-                bool anyBlock = false, anyScalar = false;
-                for (const Signal& s : sig) {
-                    const VF minH = hn::Set(d, s.minHist);
-                    for (int y = y0; y < y1; ++y) {
-                        float* oc[3] = {s.outC->row(0, y), s.outC->row(1, y), s.outC->row(2, y)};
-                        const float* hrow = s.hist->row(0, y);
-                        // Everywhere first: the temporal estimate passes through (sanitised).
-                        for (int c = 0; c < 3; ++c) {
-                            const float* src = s.color->row(c, y);
-                            for (int x = 0; x < w; ++x) oc[c][x] = px::sanitize(src[x]);
-                        }
-                        if (s.outV) {
-                            const float* src = s.var->row(0, y);
-                            float* ov = s.outV->row(0, y);
-                            for (int x = 0; x < w; ++x) ov[x] = px::sanitizePositive(src[x], 1e32f);
-                        }
-                        auto isShort = [&](int x) {
-                            return !(px::sanitizePositive(hrow[x], 1e6f) >= s.minHist);
-                        };
-                        for (int x = 0; x < std::min(kRadius, w); ++x) anyScalar |= isShort(x);
-                        for (int x = scalarFrom; x < w; ++x) anyScalar |= isShort(x);
-                        for (int k = 0; k < blocks; ++k) {
-                            const VF hl =
-                                simd::sanitizePositive(hn::LoadU(d, hrow + blockX(k)), 1e6f);
-                            const bool sh = !hn::AllFalse(d, hn::Lt(hl, minH));
-                            need[size_t(k)] |= uint8_t(sh);
-                            anyBlock |= sh;
-                        }
-                    }
-                }
-                if (anyScalar) {  // border pixels read the inputs directly
-                    for (const Signal& s : sig)
-                        for (int y = y0; y < y1; ++y) {
-                            float* oc[3] = {s.outC->row(0, y), s.outC->row(1, y),
-                                            s.outC->row(2, y)};
-                            float* ov = s.outV ? s.outV->row(0, y) : nullptr;
-                            const float* hrow = s.hist->row(0, y);
-                            auto scalarAt = [&](int x) {
-                                const float hl = px::sanitizePositive(hrow[x], 1e6f);
-                                if (hl >= s.minHist) return;
-                                float c3[3], v;
-                                estimatePixel(in, s, x, y, hl, c3, &v);
-                                for (int c = 0; c < 3; ++c) oc[c][x] = c3[c];
-                                if (ov) ov[x] = v;
-                            };
-                            for (int x = 0; x < std::min(kRadius, w); ++x) scalarAt(x);
-                            for (int x = std::max(scalarFrom, kRadius); x < w; ++x) scalarAt(x);
-                        }
-                }
+                bool anyBlock = false;
+                if (passThrough(sig, blocks, y0, y1, need, anyBlock))
+                    estimateBorders(in, sig, blocks, y0, y1);
                 if (!anyBlock) continue;
-                // The vector path: prepare the needed blocks' columns (with the taps' reach of
-                // 3 on either side) for the band's rows and halo, then estimate block by block.
+                // The vector path on the band's rows, its halo prepared too.
                 const int base = std::max(0, y0 - kRadius), p1 = std::min(in.h, y1 + kRadius);
                 auto lease = arena.acquire(size_t(kGeometryPlanes + kSignalPlanes * S), bandPixels);
                 float* P[kGeometryPlanes + 2 * kSignalPlanes];
                 for (int k = 0; k < kGeometryPlanes + kSignalPlanes * S; ++k)
                     P[k] = lease[size_t(k)];
-                for (int k0 = 0; k0 < blocks;) {
-                    if (!need[size_t(k0)]) {
-                        ++k0;
-                        continue;
-                    }
-                    int k1 = k0 + 1;
-                    while (k1 < blocks && need[size_t(k1)]) ++k1;
-                    for (int y = base; y < p1; ++y)
-                        prepareRow(in, sig, y, P, size_t(y - base) * size_t(w),
-                                   blockX(k0) - kRadius, blockX(k1 - 1) + n + kRadius);
-                    k0 = k1;
-                }
-                for (int y = y0; y < y1; ++y)
-                    for (int k = 0; k < blocks; ++k) {
-                        if (!need[size_t(k)]) continue;
-                        const int x = blockX(k);
-                        VF hl[2];
-                        MF needLanes[2];
-                        int which[2], count = 0;  // the signals with a short pixel here
-                        for (int g = 0; g < S; ++g) {
-                            const Signal& s = sig[size_t(g)];
-                            hl[g] =
-                                simd::sanitizePositive(hn::LoadU(d, s.hist->row(0, y) + x), 1e6f);
-                            needLanes[g] = hn::Lt(hl[g], hn::Set(d, s.minHist));
-                            if (!hn::AllFalse(d, needLanes[g])) which[count++] = g;
-                        }
-                        // Both signals weighed at once only where both need it: a pair's
-                        // short pixels overlap only in part (anti-lag shortens each chain's
-                        // history on its own).
-                        if (count == 2)
-                            estimateBlock<2>(in, sig, which, P, base, x, y, hl, needLanes);
-                        else if (count == 1)
-                            estimateBlock<1>(in, sig, which, P, base, x, y, hl, needLanes);
-                    }
+                prepareBlocks(in, sig, blocks, need, P, base, p1);
+                estimateBlocks(in, sig, blocks, need, P, base, y0, y1);
             }
         },
         1);
@@ -388,72 +419,89 @@ HWY_EXPORT(estimate);
 
 using namespace kestrel;
 
-PassDesc VarianceEstimationPass::describe() {
-    PassDesc d("VarianceEstimation",
-               "Spatial variance estimate where the history is short: 7x7 cross-bilateral moments"
-               " (depth, normal, luminance weights), variance boosted by 4 / historyLength; colour"
-               " filtered with the same weights. Elsewhere colour and variance pass through.");
-    d.input("color", Format::Float3, "temporally accumulated illumination")
-        .input("moments", Format::Float2, "accumulated luminance moments (l, l^2)")
-        .input("historyLength", Format::Float, "history length per pixel")
-        .input("variance", Format::Float, "temporal variance")
-        .input("depth", Format::Float, "linear view depth")
-        .input("normal", Format::Float3, "world-space normal")
-        .optionalInput("objectId", Format::Int32, "object id: taps on another object get weight 0")
-        .output("color", Format::Float3, "illumination (filtered where the history is short)")
-        .output("variance", Format::Float, "luminance variance")
-        .fuseOn({"depth", "normal", "objectId"})
-        .paramFloat("sigmaZ", 1.0, 0.0, 1e6, "depth weight tolerance in units of the depth slope")
-        .paramFloat("sigmaN", 128.0, 0.0, 1e4, "normal weight exponent")
-        .paramFloat("sigmaL", 0.0, 0.0, 1e6,
-                    "luminance weight exp(-|l_p - l_q| / sigmaL) in absolute luminance (Falcor's"
-                    " phiColor, 10; values below 1e-6 count as 1e-6); 0: none. Off by default: in "
-                    "absolute units it depends on the"
-                    " render's exposure (svgf.json on blender-street 1000x brighter: -2.5 dB with"
-                    " 10, blender-street-defaults -8 dB), at scale 1 it measured -0.17 to +0.04 dB")
-        .paramFloat("minHistoryLength", 4.0, 0.0, 1e6,
-                    "history length below which the spatial estimate is used")
-        .paramBool("exact", false,
-                   "run the plain scalar path (libm exp/pow, no SIMD) to measure what the fast"
-                   " path's approximations cost in error; several times slower");
+VarianceEstimationPass::Declaration::Declaration()
+    : kestrel::Declaration<Params>(
+          "VarianceEstimation",
+          "Spatial variance estimate where the history is short: 7x7 cross-bilateral moments"
+          " (depth, normal, luminance weights), variance boosted by 4 / historyLength; colour"
+          " filtered with the same weights. Elsewhere colour and variance pass through.") {
+    color = input("color", Format::Float3, "temporally accumulated illumination");
+    moments = input("moments", Format::Float2, "accumulated luminance moments (l, l^2)");
+    historyLength = input("historyLength", Format::Float, "history length per pixel");
+    variance = input("variance", Format::Float, "temporal variance");
+    depth = input("depth", Format::Float, "linear view depth");
+    normal = input("normal", Format::Float3, "world-space normal");
+    objectId =
+        optionalInput("objectId", Format::Int32, "object id: taps on another object get weight 0");
+    colorOut =
+        output("color", Format::Float3, "illumination (filtered where the history is short)");
+    varianceOut = output("variance", Format::Float, "luminance variance");
+    fuseOn({&depth, &normal, &objectId});
+    paramDecimal("sigmaZ", &Params::sigmaZ, 0.0, 1e6,
+                 "depth weight tolerance in units of the depth slope");
+    paramDecimal("sigmaN", &Params::sigmaN, 0.0, 1e4, "normal weight exponent");
+    paramDecimal("sigmaL", &Params::sigmaL, 0.0, 1e6,
+                 "luminance weight exp(-|l_p - l_q| / sigmaL) in absolute luminance (Falcor's"
+                 " phiColor, 10; values below 1e-6 count as 1e-6); 0: none. Off by default: in "
+                 "absolute units it depends on the"
+                 " render's exposure (svgf.json on blender-street 1000x brighter: -2.5 dB with"
+                 " 10, blender-street-defaults -8 dB), at scale 1 it measured -0.17 to +0.04 dB");
+    paramDecimal("minHistoryLength", &Params::minHistoryLength, 0.0, 1e6,
+                 "history length below which the spatial estimate is used");
+    param("exact", &Params::exact,
+          "run the plain scalar path (libm exp/pow, no SIMD) to measure what the fast"
+          " path's approximations cost in error; several times slower");
+}
+
+const VarianceEstimationPass::Declaration& VarianceEstimationPass::declaration() {
+    static const Declaration d;
     return d;
 }
 
-VarianceEstimationPass::VarianceEstimationPass(const ParamValues& p)
-    : sigmaZ_(p.getFloat("sigmaZ")),
-      sigmaN_(p.getFloat("sigmaN")),
-      sigmaL_(p.getFloat("sigmaL")),
-      minHist_(p.getFloat("minHistoryLength")),
-      exact_(p.getBool("exact")) {}
-
 namespace {
-Inputs sharedInputs(const FrameContext& ctx, PassIO& io, float sigmaZ, float sigmaN, float sigmaL) {
+const ImageView* boundInput(PassIO& io, const InputPort& p) {
+    return io.has(p) ? &io.input(p) : nullptr;
+}
+
+Inputs sharedInputs(const FrameContext& ctx, PassIO& io, const VarianceEstimationPass::Params& p) {
+    const VarianceEstimationPass::Declaration& d = VarianceEstimationPass::declaration();
+    const ImageView* ids = boundInput(io, d.objectId);
     return {ctx.extent.width,
             ctx.extent.height,
-            &io.input("depth"),
-            &io.input("normal"),
-            io.hasInput("objectId") ? io.input("objectId").ints() : nullptr,
-            sigmaZ,
-            sigmaN,
-            sigmaL > 0.f ? 1.f / std::max(sigmaL, reference::kMinSigmaL) : 0.f};
+            &io.input(d.depth),
+            &io.input(d.normal),
+            ids ? ids->ints() : nullptr,
+            p.sigmaZ,
+            p.sigmaN,
+            p.sigmaL > 0.f ? 1.f / std::max(p.sigmaL, reference::kMinSigmaL) : 0.f};
 }
 
 Signal signalOf(PassIO& io, float minHist) {
-    return {&io.input("color"),
-            &io.input("moments"),
-            &io.input("historyLength"),
-            &io.input("variance"),
-            &io.output("color"),
-            io.hasOutput("variance") ? &io.output("variance") : nullptr,
+    const VarianceEstimationPass::Declaration& d = VarianceEstimationPass::declaration();
+    return {&io.input(d.color),
+            &io.input(d.moments),
+            &io.input(d.historyLength),
+            &io.input(d.variance),
+            &io.output(d.colorOut),
+            io.has(d.varianceOut) ? &io.output(d.varianceOut) : nullptr,
             minHist};
+}
+
+/// Whether two passes read the same geometry (a pair then weighs each tap once for both).
+bool sameGeometry(PassIO& a, PassIO& b) {
+    const VarianceEstimationPass::Declaration& d = VarianceEstimationPass::declaration();
+    const ImageView *ia = boundInput(a, d.objectId), *ib = boundInput(b, d.objectId);
+    return a.input(d.depth).planes == b.input(d.depth).planes &&
+           a.input(d.normal).planes == b.input(d.normal).planes &&
+           (ia == nullptr) == (ib == nullptr) && (!ia || ia->planes == ib->planes);
 }
 }  // namespace
 
 std::string VarianceEstimationPass::fusionKey() const {
     // A pair shares each tap's weight, which without a luminance term is the geometry's alone.
-    if (exact_ || sigmaL_ > 0.f) return {};
+    if (p_.exact || p_.sigmaL > 0.f) return {};
     char key[96];
-    std::snprintf(key, sizeof key, "sigmaZ=%a sigmaN=%a", double(sigmaZ_), double(sigmaN_));
+    std::snprintf(key, sizeof key, "sigmaZ=%a sigmaN=%a", double(p_.sigmaZ), double(p_.sigmaN));
     return key;
 }
 
@@ -464,41 +512,36 @@ void VarianceEstimationPass::executeFused(FrameContext& ctx, std::span<Pass* con
     size_t i = 0;
     for (; i + 1 < ios.size(); i += 2) {
         PassIO &a = *ios[i], &b = *ios[i + 1];
-        const bool sameGeometry =
-            a.input("depth").planes == b.input("depth").planes &&
-            a.input("normal").planes == b.input("normal").planes &&
-            a.hasInput("objectId") == b.hasInput("objectId") &&
-            (!a.hasInput("objectId") || a.input("objectId").planes == b.input("objectId").planes);
-        if (!sameGeometry) {
+        if (!sameGeometry(a, b)) {
             passes[i]->execute(ctx, a);
             passes[i + 1]->execute(ctx, b);
             continue;
         }
-        const Inputs in = sharedInputs(ctx, a, sigmaZ_, sigmaN_, sigmaL_);
-        const Signal sig[2] = {
-            signalOf(a, static_cast<const VarianceEstimationPass&>(*passes[i]).minHist_),
-            signalOf(b, static_cast<const VarianceEstimationPass&>(*passes[i + 1]).minHist_)};
+        const Inputs in = sharedInputs(ctx, a, p_);
+        auto minHist = [&](size_t k) {
+            return static_cast<const VarianceEstimationPass&>(*passes[k]).p_.minHistoryLength;
+        };
+        const Signal sig[2] = {signalOf(a, minHist(i)), signalOf(b, minHist(i + 1))};
         HWY_DYNAMIC_DISPATCH(estimate)(ctx, in, std::span<const Signal>(sig), a.idlePlanes());
     }
     if (i < ios.size()) passes[i]->execute(ctx, *ios[i]);
 }
 
 void VarianceEstimationPass::execute(FrameContext& ctx, PassIO& io) {
-    const Inputs in = sharedInputs(ctx, io, sigmaZ_, sigmaN_, sigmaL_);
-    const Signal sig = signalOf(io, minHist_);
-    if (exact_) {
-        const reference::VarianceInputs ref{
-            sig.color,
-            sig.moments,
-            sig.hist,
-            sig.var,
-            in.depth,
-            in.normal,
-            io.hasInput("objectId") ? &io.input("objectId") : nullptr,
-            sigmaZ_,
-            sigmaN_,
-            sigmaL_,
-            minHist_};
+    const Inputs in = sharedInputs(ctx, io, p_);
+    const Signal sig = signalOf(io, p_.minHistoryLength);
+    if (p_.exact) {
+        const reference::VarianceInputs ref{sig.color,
+                                            sig.moments,
+                                            sig.hist,
+                                            sig.var,
+                                            in.depth,
+                                            in.normal,
+                                            boundInput(io, declaration().objectId),
+                                            p_.sigmaZ,
+                                            p_.sigmaN,
+                                            p_.sigmaL,
+                                            p_.minHistoryLength};
         ctx.parallelRows(in.h, [&](int y0, int y1) {
             reference::varianceEstimation(ref, *sig.outC, sig.outV, y0, y1);
         });

@@ -8,8 +8,23 @@
 
 class VarianceEstimationPass final : public kestrel::Pass {
 public:
-    static kestrel::PassDesc describe();
-    explicit VarianceEstimationPass(const kestrel::ParamValues& p);
+    struct Params {
+        float sigmaZ = 1.f;
+        float sigmaN = 128.f;
+        float sigmaL = 0.f;  ///< 0: no luminance term
+        float minHistoryLength = 4.f;
+        bool exact = false;
+    };
+    /// Ports and parameters, declared once (kestrel/Declare.h).
+    struct Declaration : kestrel::Declaration<Params> {
+        Declaration();
+        kestrel::InputPort color, moments, historyLength, variance, depth, normal, objectId;
+        kestrel::OutputPort colorOut, varianceOut;
+    };
+    static const Declaration& declaration();
+
+    static kestrel::PassDesc describe() { return declaration().desc(); }
+    explicit VarianceEstimationPass(const kestrel::ParamValues& p) : p_(declaration().read(p)) {}
     void execute(kestrel::FrameContext& ctx, kestrel::PassIO& io) override;
     /// Non-empty where the pass may run fused: without a luminance term (the default) a tap's
     /// weight depends on the geometry alone, so two chains' estimates share it.
@@ -18,6 +33,5 @@ public:
                       std::span<kestrel::PassIO* const> ios) override;
 
 private:
-    float sigmaZ_, sigmaN_, sigmaL_, minHist_;
-    bool exact_;
+    Params p_;
 };

@@ -8,6 +8,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "VarianceEstimationPass.h"
+
 namespace kestrel::reference {
 
 /// The smallest luminance tolerance VarianceEstimation uses (a smaller sigmaL counts as this).
@@ -15,7 +17,11 @@ constexpr float kMinSigmaL = 1e-6f;
 
 struct VarianceInputs {
     const ImageView *color, *moments, *length, *var, *depth, *normal, *ids;  ///< ids may be null
-    float sigmaZ = 1.f, sigmaN = 128.f, sigmaL = 0.f, minHistory = 4.f;      // sigmaL 0: none
+    // The pass's defaults (sigmaL 0: none).
+    float sigmaZ = VarianceEstimationPass::Params{}.sigmaZ;
+    float sigmaN = VarianceEstimationPass::Params{}.sigmaN;
+    float sigmaL = VarianceEstimationPass::Params{}.sigmaL;
+    float minHistory = VarianceEstimationPass::Params{}.minHistoryLength;
 };
 
 /// Rows [y0, y1) of the output (outVar may be null).

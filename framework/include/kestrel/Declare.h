@@ -15,8 +15,10 @@
 // declaration; a port is a handle whose index is its place in that PassDesc, so a misspelt port
 // does not compile, and PassIO finds it without a name lookup; the parameters arrive as the
 // struct, read once when the pass is constructed (Declaration::read).
+#include <charconv>
 #include <cstdint>
 #include <functional>
+#include <initializer_list>
 #include <string>
 #include <type_traits>
 #include <utility>
@@ -101,6 +103,27 @@ protected:
             for (size_t i = 0; i < choices.size(); ++i)
                 if (choices[i] == s) p.*member = E(i);
         });
+    }
+
+    /// A float parameter as `param`, declared with the shortest decimal that reads back as the
+    /// member's float: 0.2f is declared 0.2, as written in the struct, not 0.20000000298023224
+    /// (as `kestrel passes --json` shows it). The values read are the same floats.
+    void paramDecimal(std::string name, float Params::*member, double min, double max,
+                      std::string description) {
+        param(name, member, min, max, std::move(description));
+        char text[32];
+        const auto end = std::to_chars(text, text + sizeof text, Params{}.*member).ptr;
+        double decimal = 0;
+        std::from_chars(text, end, decimal);  // not strtod: no locale
+        desc_.params.back().defaultValue = decimal;
+    }
+    /// PassDesc::fuseOn by handle: passes of this type may run fused when these inputs of each
+    /// come from the same outputs.
+    void fuseOn(std::initializer_list<const InputPort*> inputs,
+                PassDesc::FusedOutputs outputs = PassDesc::FusedOutputs::Same) {
+        std::vector<std::string> names;
+        for (const InputPort* p : inputs) names.push_back(p->name);
+        desc_.fuseOn(std::move(names), outputs);
     }
 
 private:

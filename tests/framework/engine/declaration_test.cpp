@@ -77,7 +77,44 @@ float run(const std::string& json, const std::string& output) {
     return ex.output(output).at(0, 1, 1);
 }
 
+/// Parameters declared as decimals, and inputs to fuse on, by handle.
+struct DecimalParams {
+    float alpha = 0.2f;
+    float sigma = 0.6f;
+};
+struct FusingDeclaration : Declaration<DecimalParams> {
+    FusingDeclaration() : Declaration<DecimalParams>("Fusing", "fuseOn and paramDecimal") {
+        color = input("color", Format::Float3, "the signal");
+        depth = input("depth", Format::Float, "geometry");
+        id = optionalInput("objectId", Format::Int32, "geometry");
+        out = output("color", Format::Float3, "the result");
+        fuseOn({&depth, &id}, PassDesc::FusedOutputs::MayDiffer);
+        paramDecimal("alpha", &DecimalParams::alpha, 0.0, 1.0, "as written");
+        param("sigma", &DecimalParams::sigma, 0.0, 1.0, "the float's exact value");
+    }
+    InputPort color, depth, id;
+    OutputPort out;
+};
+
 }  // namespace
+
+TEST(Declaration, DecimalDefaultsAreAsWrittenAndReadBackAsTheFloat) {
+    const FusingDeclaration decl;
+    const PassDesc& d = decl.desc();
+    EXPECT_EQ(std::get<double>(d.findParam("alpha")->defaultValue), 0.2);
+    EXPECT_EQ(std::get<double>(d.findParam("sigma")->defaultValue), double(0.6f));
+    ParamValues values({{"alpha", 0.2}, {"sigma", 0.6}});
+    EXPECT_EQ(decl.read(values).alpha, 0.2f);
+    EXPECT_EQ(decl.read(values).sigma, 0.6f);
+}
+
+TEST(Declaration, FusesOnInputsByHandle) {
+    const FusingDeclaration decl;
+    const PassDesc& d = decl.desc();
+    EXPECT_EQ(d.fusedInputs, (std::vector<std::string>{"depth", "objectId"}));
+    EXPECT_TRUE(d.fusedOutputsMayDiffer);
+    EXPECT_EQ(d.ports.size(), 4u);  // fuseOn declares no port
+}
 
 TEST(Declaration, DescribesPortsInOrderAndParametersWithTheStructsDefaults) {
     const PassDesc d = TypedPass::describe();
