@@ -16,22 +16,24 @@ float vignetteGain(float r, float radius, float strength) {
     return 1.f - strength * s;
 }
 
-PassDesc VignettePass::describe() {
-    PassDesc d("Vignette", "Darkens colour towards the corners (example out-of-tree plugin)");
-    d.input("color", Format::Float3, "linear colour")
-        .output("color", Format::Float3, "vignetted colour")
-        .paramFloat("strength", 0.5, 0.0, 1.0, "darkening in the corners: 0 none, 1 black")
-        .paramFloat("radius", 0.5, 0.0, 1.0,
-                    "normalised radius (1 = corner) where the darkening starts");
+VignettePass::Declaration::Declaration()
+    : kestrel::Declaration<Params>(
+          "Vignette", "Darkens colour towards the corners (example out-of-tree plugin)") {
+    color = input("color", Format::Float3, "linear colour");
+    colorOut = output("color", Format::Float3, "vignetted colour");
+    param("strength", &Params::strength, 0.0, 1.0, "darkening in the corners: 0 none, 1 black");
+    param("radius", &Params::radius, 0.0, 1.0,
+          "normalised radius (1 = corner) where the darkening starts");
+}
+
+const VignettePass::Declaration& VignettePass::declaration() {
+    static const Declaration d;
     return d;
 }
 
-VignettePass::VignettePass(const ParamValues& params)
-    : strength_(float(params.getDouble("strength"))), radius_(float(params.getDouble("radius"))) {}
-
 void VignettePass::execute(FrameContext& ctx, PassIO& io) {
-    const ImageView& in = io.input("color");
-    const ImageView& out = io.output("color");
+    const ImageView& in = io.input(declaration().color);
+    const ImageView& out = io.output(declaration().colorOut);
     const int w = in.width(), h = in.height();
     // Radius is measured from the image centre, normalised by the half-diagonal.
     const float cx = 0.5f * float(w), cy = 0.5f * float(h);
@@ -43,7 +45,8 @@ void VignettePass::execute(FrameContext& ctx, PassIO& io) {
             const float dy = (float(y) + 0.5f - cy) * invHalfDiag;
             for (int x = 0; x < w; ++x) {
                 const float dx = (float(x) + 0.5f - cx) * invHalfDiag;
-                gain[size_t(x)] = vignetteGain(std::sqrt(dx * dx + dy * dy), radius_, strength_);
+                gain[size_t(x)] =
+                    vignetteGain(std::sqrt(dx * dx + dy * dy), p_.radius, p_.strength);
             }
             for (int c = 0; c < 3; ++c) {
                 const float* src = in.row(c, y);

@@ -1,7 +1,8 @@
 #pragma once
 // Vignette: darkens colour towards the image corners, the way a real lens does. A minimal,
-// complete example of an out-of-tree Kestrel pass: ports with formats, ranged parameters read
-// once in the constructor, a threaded row loop, NaN/Inf-safe output.
+// complete example of an out-of-tree Kestrel pass: ports and ranged parameters declared once
+// (kestrel/Declare.h) and read through what the declaration returns, a threaded row loop,
+// NaN/Inf-safe output.
 #include <kestrel/Kestrel.h>
 
 namespace vignette {
@@ -12,13 +13,25 @@ float vignetteGain(float r, float radius, float strength);
 
 class VignettePass final : public kestrel::Pass {
 public:
-    static kestrel::PassDesc describe();
-    explicit VignettePass(const kestrel::ParamValues& params);
+    struct Params {
+        float strength = 0.5f;  ///< the default, written once
+        float radius = 0.5f;
+    };
+    /// Ports and parameters: the PassDesc `kestrel passes` shows is derived from them, and the
+    /// pass reaches its ports through these handles (a misspelt port does not compile).
+    struct Declaration : kestrel::Declaration<Params> {
+        Declaration();
+        kestrel::InputPort color;
+        kestrel::OutputPort colorOut;
+    };
+    static const Declaration& declaration();
+
+    static kestrel::PassDesc describe() { return declaration().desc(); }
+    explicit VignettePass(const kestrel::ParamValues& params) : p_(declaration().read(params)) {}
     void execute(kestrel::FrameContext& ctx, kestrel::PassIO& io) override;
 
 private:
-    float strength_ = 0.5f;
-    float radius_ = 0.5f;
+    Params p_;
 };
 
 }  // namespace vignette

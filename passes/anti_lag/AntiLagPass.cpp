@@ -187,7 +187,7 @@ void gateRow(const float* hl, const RowSums& col, float* o, int w, float sigma) 
 }
 
 void gateRows(const ImageView& color, const ImageView& history, const ValidMask& valid,
-              const ImageView& length, const ImageView& out, AntiLagPass::Settings s, int y0,
+              const ImageView& length, const ImageView& out, const AntiLagPass::Params& s, int y0,
               int y1) {
     const int w = color.width(), h = color.height(), taps = 2 * s.radius + 1;
     // A ring of the window's rows, each summed along x, then the column sums: each row's sums
@@ -246,9 +246,10 @@ void markValidRows(const ImageView& length, ValidMask& valid, int w, int y0, int
 }
 
 /// The pass for this target.
-void executeOnTarget(FrameContext& ctx, PassIO& io, AntiLagPass::Settings s) {
-    const ImageView &color = io.input("color"), &history = io.input("history"),
-                    &length = io.input("historyLength"), &out = io.output("historyLength");
+void executeOnTarget(FrameContext& ctx, PassIO& io, const AntiLagPass::Params& s) {
+    const AntiLagPass::Declaration& d = AntiLagPass::declaration();
+    const ImageView &color = io.input(d.color), &history = io.input(d.history),
+                    &length = io.input(d.historyLength), &out = io.output(d.historyLengthOut);
     const int w = ctx.extent.width;
     ValidMask valid(w, ctx.extent.height);
     ctx.parallelRows(ctx.extent.height,
@@ -277,37 +278,41 @@ HWY_EXPORT(executeOnTarget);
 
 using namespace kestrel;
 
-PassDesc AntiLagPass::describe() {
-    PassDesc d("AntiLag",
-               "Shortens the reprojected history length where the lighting changed (A-SVGF's "
-               "temporal-gradient test): where the window means of the current frame's and of the "
-               "history's luminance differ by more than sigma standard errors of the current "
-               "mean, the excess over the smaller mean is the gradient lambda (at most 1), and "
-               "the current frame's weight 1 / (length + 1) rises as A-SVGF's a' = (1 - lambda) "
-               "a + lambda (TemporalAccumulation's alpha floor applies after). "
-               "Exposure-independent.");
-    d.input("color", Format::Float3, "this frame's (demodulated) colour")
-        .input("history", Format::Float3, "the reprojected colour history")
-        .input("historyLength", Format::Float, "the reprojected history length (0: none)")
-        .output("historyLength", Format::Float, "the history length to accumulate with")
-        .inPlaceOf("historyLength")
-        .paramInt("radius", 4, 1, kMaxRadius, "window half-width in pixels (4: 9x9)")
-        .paramFloat("sigma", 4.0, 0.0, 1e6,
-                    "standard errors of the current window's mean luminance a difference must "
-                    "exceed before the history is shortened (higher: fewer false alarms on noise)")
-        .paramBool("enabled", true,
-                   "false: the history length passes through unchanged and the pass is left out");
+AntiLagPass::Declaration::Declaration()
+    : kestrel::Declaration<Params>(
+          "AntiLag",
+          "Shortens the reprojected history length where the lighting changed (A-SVGF's "
+          "temporal-gradient test): where the window means of the current frame's and of the "
+          "history's luminance differ by more than sigma standard errors of the current "
+          "mean, the excess over the smaller mean is the gradient lambda (at most 1), and "
+          "the current frame's weight 1 / (length + 1) rises as A-SVGF's a' = (1 - lambda) "
+          "a + lambda (TemporalAccumulation's alpha floor applies after). "
+          "Exposure-independent.") {
+    color = input("color", Format::Float3, "this frame's (demodulated) colour");
+    history = input("history", Format::Float3, "the reprojected colour history");
+    historyLength =
+        input("historyLength", Format::Float, "the reprojected history length (0: none)");
+    historyLengthOut = output("historyLength", Format::Float,
+                              "the history length to accumulate with", &historyLength);
+    param("radius", &Params::radius, 1, kMaxRadius, "window half-width in pixels (4: 9x9)");
+    param("sigma", &Params::sigma, 0.0, 1e6,
+          "standard errors of the current window's mean luminance a difference must "
+          "exceed before the history is shortened (higher: fewer false alarms on noise)");
+    param("enabled", &Params::enabled,
+          "false: the history length passes through unchanged and the pass is left out");
+}
+
+const AntiLagPass::Declaration& AntiLagPass::declaration() {
+    static const Declaration d;
     return d;
 }
 
-AntiLagPass::AntiLagPass(const ParamValues& p)
-    : s_{int(p.getInt("radius")), p.getFloat("sigma")}, enabled_(p.getBool("enabled")) {}
-
 void AntiLagPass::resolve(ResolveContext& rc) {
-    if (!enabled_) rc.forward("historyLength", "historyLength");
+    const Declaration& d = declaration();
+    if (!p_.enabled) rc.forward(d.historyLengthOut, d.historyLength);
 }
 
 void AntiLagPass::execute(FrameContext& ctx, PassIO& io) {
-    HWY_DYNAMIC_DISPATCH(executeOnTarget)(ctx, io, s_);
+    HWY_DYNAMIC_DISPATCH(executeOnTarget)(ctx, io, p_);
 }
 #endif  // HWY_ONCE

@@ -12,19 +12,26 @@
 
 class AntiLagPass final : public kestrel::Pass {
 public:
-    static kestrel::PassDesc describe();
-    explicit AntiLagPass(const kestrel::ParamValues& p);
+    static constexpr int kMaxRadius = 16;  ///< the radius parameter's bound
+
+    struct Params {
+        int radius = 4;     ///< window half-width in pixels
+        float sigma = 4.f;  ///< standard errors of the current window mean a difference must exceed
+        bool enabled = true;
+    };
+    /// Ports and parameters, declared once (kestrel/Declare.h).
+    struct Declaration : kestrel::Declaration<Params> {
+        Declaration();
+        kestrel::InputPort color, history, historyLength;
+        kestrel::OutputPort historyLengthOut;
+    };
+    static const Declaration& declaration();
+
+    static kestrel::PassDesc describe() { return declaration().desc(); }
+    explicit AntiLagPass(const kestrel::ParamValues& p) : p_(declaration().read(p)) {}
     void resolve(kestrel::ResolveContext& rc) override;
     void execute(kestrel::FrameContext& ctx, kestrel::PassIO& io) override;
 
-    static constexpr int kMaxRadius = 16;  ///< the radius parameter's bound
-
-    struct Settings {
-        int radius;   ///< window half-width in pixels
-        float sigma;  ///< standard errors of the current window mean a difference must exceed
-    };
-
 private:
-    Settings s_;
-    bool enabled_;
+    Params p_;
 };

@@ -7,27 +7,36 @@
 
 using namespace kestrel;
 
-PassDesc BackgroundEmissionPass::describe() {
-    PassDesc d("BackgroundEmission",
-               "Joins the background to the emission: emission = color where the depth is the "
-               "background (no surface: the environment seen directly, exact at 1 spp), else the "
-               "emission input (0 when not fed). Feeds a chain that subtracts its emission before "
-               "filtering and adds it back after, so the background comes out as it went in.");
-    d.input("color", Format::Float3, "the frame's colour")
-        .input("depth", Format::Float, "linear depth; the background at or beyond 1e10 (or NaN)")
-        .optionalInput("emission", Format::Float3, "the render's own emission, if any")
-        .output("emission", Format::Float3, "the emission with the background joined to it")
-        .inPlaceOf("emission");  // pointwise: reads a pixel before writing it
+BackgroundEmissionPass::Declaration::Declaration()
+    : kestrel::Declaration<Params>(
+          "BackgroundEmission",
+          "Joins the background to the emission: emission = color where the depth is the "
+          "background (no surface: the environment seen directly, exact at 1 spp), else the "
+          "emission input (0 when not fed). Feeds a chain that subtracts its emission before "
+          "filtering and adds it back after, so the background comes out as it went in.") {
+    color = input("color", Format::Float3, "the frame's colour");
+    depth =
+        input("depth", Format::Float, "linear depth; the background at or beyond 1e10 (or NaN)");
+    emission = optionalInput("emission", Format::Float3, "the render's own emission, if any");
+    // pointwise: reads a pixel before writing it
+    emissionOut = output("emission", Format::Float3,
+                         "the emission with the background joined to it", &emission);
+}
+
+const BackgroundEmissionPass::Declaration& BackgroundEmissionPass::declaration() {
+    static const Declaration d;
     return d;
 }
 
 void BackgroundEmissionPass::execute(FrameContext& ctx, PassIO& io) {
-    const ImageView &color = io.input("color"), &depth = io.input("depth"),
-                    &out = io.output("emission");
-    const ImageView* emission = io.hasInput("emission") ? &io.input("emission") : nullptr;
+    const Declaration& d = declaration();
+    const ImageView &color = io.input(d.color), &depth = io.input(d.depth),
+                    &out = io.output(d.emissionOut);
+    const ImageView* emission = io.has(d.emission) ? &io.input(d.emission) : nullptr;
     const int w = ctx.extent.width;
     ctx.parallelRows(ctx.extent.height, [&](int y0, int y1) {
-        std::vector<uint8_t> background(static_cast<size_t>(w));  // one test per pixel, not per channel
+        std::vector<uint8_t> background(
+            static_cast<size_t>(w));  // one test per pixel, not per channel
         for (int y = y0; y < y1; ++y) {
             const float* z = depth.row(0, y);
             for (int x = 0; x < w; ++x)

@@ -9,7 +9,16 @@
 
 class BackgroundEmissionPass final : public kestrel::Pass {
 public:
-    static kestrel::PassDesc describe();
+    struct Params {};
+    /// Ports, declared once (kestrel/Declare.h); the pass has no parameters.
+    struct Declaration : kestrel::Declaration<Params> {
+        Declaration();
+        kestrel::InputPort color, depth, emission;
+        kestrel::OutputPort emissionOut;
+    };
+    static const Declaration& declaration();
+
+    static kestrel::PassDesc describe() { return declaration().desc(); }
     explicit BackgroundEmissionPass(const kestrel::ParamValues&) {}
     void execute(kestrel::FrameContext& ctx, kestrel::PassIO& io) override;
 };

@@ -141,12 +141,13 @@ thread_local std::vector<float> tRing;
 /// The pass for this target (its parameters as arguments).
 void executeOnTarget(FrameContext& ctx, PassIO& io, float alpha_, float k_, int radius_,
                      bool holdCurrent_) {
-    const ImageView& cur = io.input("color");
-    const ImageView& out = io.output("color");
+    const ClampedAccumulationPass::Declaration& d = ClampedAccumulationPass::declaration();
+    const ImageView& cur = io.input(d.color);
+    const ImageView& out = io.output(d.colorOut);
     const int w = cur.width(), h = cur.height(), r = radius_;
-    const bool hasHistory = io.hasInput("history");
-    const ImageView* hist = hasHistory ? &io.input("history") : nullptr;
-    const ImageView* len = io.hasInput("historyLength") ? &io.input("historyLength") : nullptr;
+    const bool hasHistory = io.has(d.history);
+    const ImageView* hist = hasHistory ? &io.input(d.history) : nullptr;
+    const ImageView* len = io.has(d.historyLength) ? &io.input(d.historyLength) : nullptr;
 
     if (!hasHistory) {  // first frame or no reprojection: alpha = 1 everywhere
         ctx.parallelRows(h, [&](int y0, int y1) {
@@ -216,39 +217,41 @@ namespace {
 HWY_EXPORT(executeOnTarget);
 }  // namespace
 
-PassDesc ClampedAccumulationPass::describe() {
-    PassDesc d("ClampedAccumulation",
-               "GAMES202 temporal accumulation: alpha*C + (1-alpha)*clamp(history, mu-k*sigma, "
-               "mu+k*sigma) over a window of the current colour");
-    d.input("color", Format::Float3, "current (spatially filtered) colour")
-        .optionalInput("history", Format::Float3, "previous output reprojected to this frame")
-        .optionalInput("historyLength", Format::Float,
-                       "reprojection validity: 0 where the projection failed (alpha = 1 there)")
-        .output("color", Format::Float3, "accumulated colour")
-        .paramFloat("alpha", 0.2, 0.0, 1.0, "weight of the current colour where history is valid")
-        .paramFloat("k", 1.0, 0.0, 1000.0, "half-width of the colour box in standard deviations")
-        .paramInt("radius", 3, 0, 32, "window radius of the mean/sigma statistics (3: 7x7)")
-        .paramBool("holdCurrent", false,
-                   "widen the box to contain the current colour (off: the homework's box), so "
-                   "that a history equal to the current colour is never pulled away from it");
+ClampedAccumulationPass::Declaration::Declaration()
+    : kestrel::Declaration<Params>(
+          "ClampedAccumulation",
+          "GAMES202 temporal accumulation: alpha*C + (1-alpha)*clamp(history, mu-k*sigma, "
+          "mu+k*sigma) over a window of the current colour") {
+    color = input("color", Format::Float3, "current (spatially filtered) colour");
+    history = optionalInput("history", Format::Float3, "previous output reprojected to this frame");
+    historyLength =
+        optionalInput("historyLength", Format::Float,
+                      "reprojection validity: 0 where the projection failed (alpha = 1 there)");
+    colorOut = output("color", Format::Float3, "accumulated colour");
+    param("alpha", &Params::alpha, 0.0, 1.0, "weight of the current colour where history is valid");
+    param("k", &Params::k, 0.0, 1000.0, "half-width of the colour box in standard deviations");
+    param("radius", &Params::radius, 0, 32, "window radius of the mean/sigma statistics (3: 7x7)");
+    param("holdCurrent", &Params::holdCurrent,
+          "widen the box to contain the current colour (off: the homework's box), so "
+          "that a history equal to the current colour is never pulled away from it");
+}
+
+const ClampedAccumulationPass::Declaration& ClampedAccumulationPass::declaration() {
+    static const Declaration d;
     return d;
 }
 
-ClampedAccumulationPass::ClampedAccumulationPass(const ParamValues& params)
-    : alpha_(params.getFloat("alpha")),
-      k_(params.getFloat("k")),
-      radius_(int(params.getInt("radius"))),
-      holdCurrent_(params.getBool("holdCurrent")) {}
-
 void ClampedAccumulationPass::resolve(ResolveContext& rc) {
-    if (!rc.isBound("history")) {
-        rc.forward("color", "color");
+    const Declaration& d = declaration();
+    if (!rc.isBound(d.history)) {
+        rc.forward(d.colorOut, d.color);
         rc.note("no history bound: the output is the current colour");
     }
 }
 
 void ClampedAccumulationPass::execute(FrameContext& ctx, PassIO& io) {
-    HWY_DYNAMIC_DISPATCH(executeOnTarget)(ctx, io, alpha_, k_, radius_, holdCurrent_);
+    HWY_DYNAMIC_DISPATCH(executeOnTarget)
+    (ctx, io, float(p_.alpha), p_.k, p_.radius, p_.holdCurrent);
 }
 
 }  // namespace kestrel::passes

@@ -11,16 +11,29 @@ namespace kestrel::passes {
 
 class ClampedAccumulationPass final : public Pass {
 public:
-    static PassDesc describe();
-    explicit ClampedAccumulationPass(const ParamValues& params);
+    struct Params {
+        // double only so that the declared default is 0.2 (a float member declares
+        // double(0.2f)); the pass blends with float(alpha).
+        double alpha = 0.2;
+        float k = 1.f;
+        int radius = 3;
+        bool holdCurrent = false;
+    };
+    /// Ports and parameters, declared once (kestrel/Declare.h).
+    struct Declaration : kestrel::Declaration<Params> {
+        Declaration();
+        InputPort color, history, historyLength;
+        OutputPort colorOut;
+    };
+    static const Declaration& declaration();
+
+    static PassDesc describe() { return declaration().desc(); }
+    explicit ClampedAccumulationPass(const ParamValues& params) : p_(declaration().read(params)) {}
     void resolve(ResolveContext& rc) override;
     void execute(FrameContext& ctx, PassIO& io) override;
 
 private:
-    float alpha_ = 0.2f;
-    float k_ = 1.f;
-    int radius_ = 3;
-    bool holdCurrent_ = false;
+    Params p_;
 };
 
 }  // namespace kestrel::passes

@@ -109,50 +109,64 @@ void fillPixel(const Planes& p, const HistoryFixPass::Settings& s, int x, int y,
 
 }  // namespace
 
-PassDesc HistoryFixPass::describe() {
-    PassDesc d("HistoryFix",
-               "Fills pixels with a short history (disocclusions, cuts, the first frames, a "
-               "history anti-lag shortened) from their neighbours on the same surface: a 5x5 "
-               "B3-spline footprint (3x3 binomial once the pixel has some history) whose stride "
-               "shrinks from `stride` at historyLength 1 "
-               "towards 1 at `frames`, weighted by depth, normal, object id and each neighbour's "
-               "history length, never by luminance (after NRD ReBLUR's history fix); the pixel "
-               "keeps (historyLength - 1) / (frames - 1) of its own colour. Pixels with "
-               "`frames` or more pass unchanged.");
-    d.input("color", Format::Float3, "temporally accumulated illumination")
-        .input("historyLength", Format::Float, "history length per pixel (1: no history)")
-        .input("depth", Format::Float, "linear view depth")
-        .input("normal", Format::Float3, "world-space normal")
-        .optionalInput("objectId", Format::Int32, "object id: taps on another object are skipped")
-        .output("color", Format::Float3, "the illumination, filled where the history is short")
-        .paramFloat("frames", 4.0, 1.0, 1e6,
-                    "pixels whose history is shorter are filled (4: VarianceEstimation's "
-                    "minHistoryLength, below which the variance is spatial too)")
-        .paramInt("stride", 1, 1, 64,
-                  "tap spacing in pixels at historyLength 1 (the footprint is 4 strides wide)")
-        .paramFloat("normalPower", 8.0, 0.0, 1e4,
-                    "normal weight exponent: max(0, n_p . n_q)^p (looser than A-Trous' 128: a "
-                    "curved surface's neighbours must count)")
-        .paramFloat("depthSlack", 0.01, 0.0, 1e6,
-                    "relative depth tolerance per pixel of distance, beyond the depth slope");
+HistoryFixPass::Declaration::Declaration()
+    : kestrel::Declaration<Params>(
+          "HistoryFix",
+          "Fills pixels with a short history (disocclusions, cuts, the first frames, a "
+          "history anti-lag shortened) from their neighbours on the same surface: a 5x5 "
+          "B3-spline footprint (3x3 binomial once the pixel has some history) whose stride "
+          "shrinks from `stride` at historyLength 1 "
+          "towards 1 at `frames`, weighted by depth, normal, object id and each neighbour's "
+          "history length, never by luminance (after NRD ReBLUR's history fix); the pixel "
+          "keeps (historyLength - 1) / (frames - 1) of its own colour. Pixels with "
+          "`frames` or more pass unchanged.") {
+    color = input("color", Format::Float3, "temporally accumulated illumination");
+    historyLength =
+        input("historyLength", Format::Float, "history length per pixel (1: no history)");
+    depth = input("depth", Format::Float, "linear view depth");
+    normal = input("normal", Format::Float3, "world-space normal");
+    objectId =
+        optionalInput("objectId", Format::Int32, "object id: taps on another object are skipped");
+    colorOut =
+        output("color", Format::Float3, "the illumination, filled where the history is short");
+    param("frames", &Params::frames, 1.0, 1e6,
+          "pixels whose history is shorter are filled (4: VarianceEstimation's "
+          "minHistoryLength, below which the variance is spatial too)");
+    param("stride", &Params::stride, 1, 64,
+          "tap spacing in pixels at historyLength 1 (the footprint is 4 strides wide)");
+    param("normalPower", &Params::normalPower, 0.0, 1e4,
+          "normal weight exponent: max(0, n_p . n_q)^p (looser than A-Trous' 128: a "
+          "curved surface's neighbours must count)");
+    param("depthSlack", &Params::depthSlack, 0.0, 1e6,
+          "relative depth tolerance per pixel of distance, beyond the depth slope");
+}
+
+const HistoryFixPass::Declaration& HistoryFixPass::declaration() {
+    static const Declaration d;
     return d;
 }
 
-HistoryFixPass::HistoryFixPass(const ParamValues& p)
-    : s_{p.getFloat("frames"), int(p.getInt("stride")), p.getFloat("normalPower"),
-         p.getFloat("depthSlack")} {}
+namespace {
+HistoryFixPass::Settings settingsOf(const HistoryFixPass::Params& p) {
+    return {p.frames, p.stride, p.normalPower, float(p.depthSlack)};
+}
+}  // namespace
+
+HistoryFixPass::HistoryFixPass(const ParamValues& values)
+    : s_(settingsOf(declaration().read(values))) {}
 
 void HistoryFixPass::execute(FrameContext& ctx, PassIO& io) {
-    const ImageView &color = io.input("color"), &normal = io.input("normal");
+    const Declaration& d = declaration();
+    const ImageView &color = io.input(d.color), &normal = io.input(d.normal);
     const int w = ctx.extent.width, h = ctx.extent.height;
     const Planes p{w,
                    h,
                    {color.channel(0), color.channel(1), color.channel(2)},
-                   io.input("historyLength").channel(0),
-                   io.input("depth").channel(0),
+                   io.input(d.historyLength).channel(0),
+                   io.input(d.depth).channel(0),
                    {normal.channel(0), normal.channel(1), normal.channel(2)},
-                   io.hasInput("objectId") ? io.input("objectId").ints() : nullptr};
-    const ImageView& out = io.output("color");
+                   io.has(d.objectId) ? io.input(d.objectId).ints() : nullptr};
+    const ImageView& out = io.output(d.colorOut);
     float* o[3] = {out.channel(0), out.channel(1), out.channel(2)};
     ctx.parallelRows(h, [&](int y0, int y1) {
         for (int y = y0; y < y1; ++y) {

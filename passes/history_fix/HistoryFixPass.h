@@ -13,10 +13,27 @@
 
 class HistoryFixPass final : public kestrel::Pass {
 public:
-    static kestrel::PassDesc describe();
+    struct Params {
+        float frames = 4.f;
+        int stride = 1;
+        float normalPower = 8.f;
+        // double only so that the declared default is 0.01 (a float member declares
+        // double(0.01f)); the pass works with float(depthSlack) (Settings).
+        double depthSlack = 0.01;
+    };
+    /// Ports and parameters, declared once (kestrel/Declare.h).
+    struct Declaration : kestrel::Declaration<Params> {
+        Declaration();
+        kestrel::InputPort color, historyLength, depth, normal, objectId;
+        kestrel::OutputPort colorOut;
+    };
+    static const Declaration& declaration();
+
+    static kestrel::PassDesc describe() { return declaration().desc(); }
     explicit HistoryFixPass(const kestrel::ParamValues& p);
     void execute(kestrel::FrameContext& ctx, kestrel::PassIO& io) override;
 
+    /// The parameters as the kernel uses them.
     struct Settings {
         float frames;       ///< pixels with historyLength below this are filled
         int stride;         ///< tap spacing (pixels) at historyLength 1

@@ -49,11 +49,12 @@ struct GuidePlanes {
 };
 
 void buildGuide(FrameContext& ctx, PassIO& io, GuidePlanes& g) {
-    const ImageView& color = io.input("color");
-    const ImageView& normal = io.input("normal");
-    const ImageView& position = io.input("position");
-    const ImageView* depth = io.hasInput("depth") ? &io.input("depth") : nullptr;
-    const ImageView* ids = io.hasInput("objectId") ? &io.input("objectId") : nullptr;
+    const JointBilateralPass::Declaration& d = JointBilateralPass::declaration();
+    const ImageView& color = io.input(d.color);
+    const ImageView& normal = io.input(d.normal);
+    const ImageView& position = io.input(d.position);
+    const ImageView* depth = io.has(d.depth) ? &io.input(d.depth) : nullptr;
+    const ImageView* ids = io.has(d.objectId) ? &io.input(d.objectId) : nullptr;
     const int w = g.width;
     ctx.parallelRows(g.height, [&](int y0, int y1) {
         for (int y = y0; y < y1; ++y) {
@@ -158,38 +159,43 @@ void filterChunk(const GuidePlanes& g, const JointBilateralPass::Settings& s, in
 
 }  // namespace
 
-PassDesc JointBilateralPass::describe() {
-    PassDesc d("JointBilateral",
-               "GAMES202 joint bilateral filter guided by normal, position and object id");
-    d.input("color", Format::Float3, "noisy colour")
-        .input("normal", Format::Float3, "world-space unit normal ((0,0,0) on background)")
-        .input("position", Format::Float3, "world-space position (D_plane term)")
-        .optionalInput("depth", Format::Float, "linear depth: only marks background pixels")
-        .optionalInput("objectId", Format::Int32, "object id: taps of other objects get weight 0")
-        .output("color", Format::Float3, "filtered colour")
-        .paramFloat("sigmaCoord", 32.0, 0.01, 1e4, "spatial sigma in pixels (sigma_p)")
-        .paramFloat("sigmaColor", 0.6, 1e-4, 1e6, "colour-distance sigma (sigma_c)")
-        .paramFloat("sigmaNormal", 0.1, 1e-4, 1e3, "normal-angle sigma in radians (sigma_n)")
-        .paramFloat("sigmaPlane", 0.1, 1e-4, 1e3, "D_plane sigma (sigma_d)")
-        .paramInt("radius", 16, 0, kMaxRadius, "kernel radius in pixels ((2r+1)^2 taps)");
+JointBilateralPass::Declaration::Declaration()
+    : kestrel::Declaration<Params>(
+          "JointBilateral",
+          "GAMES202 joint bilateral filter guided by normal, position and object id") {
+    color = input("color", Format::Float3, "noisy colour");
+    normal = input("normal", Format::Float3, "world-space unit normal ((0,0,0) on background)");
+    position = input("position", Format::Float3, "world-space position (D_plane term)");
+    depth = optionalInput("depth", Format::Float, "linear depth: only marks background pixels");
+    objectId =
+        optionalInput("objectId", Format::Int32, "object id: taps of other objects get weight 0");
+    colorOut = output("color", Format::Float3, "filtered colour");
+    param("sigmaCoord", &Params::sigmaCoord, 0.01, 1e4, "spatial sigma in pixels (sigma_p)");
+    param("sigmaColor", &Params::sigmaColor, 1e-4, 1e6, "colour-distance sigma (sigma_c)");
+    param("sigmaNormal", &Params::sigmaNormal, 1e-4, 1e3,
+          "normal-angle sigma in radians (sigma_n)");
+    param("sigmaPlane", &Params::sigmaPlane, 1e-4, 1e3, "D_plane sigma (sigma_d)");
+    param("radius", &Params::radius, 0, kMaxRadius, "kernel radius in pixels ((2r+1)^2 taps)");
+}
+
+const JointBilateralPass::Declaration& JointBilateralPass::declaration() {
+    static const Declaration d;
     return d;
 }
 
 JointBilateralPass::JointBilateralPass(const ParamValues& params) {
+    const Params p = declaration().read(params);
     // 1 / (2 sigma^2), times log2(e): the kernel evaluates exp(-x) as 2^(-x log2 e).
-    auto inv = [&](const char* name) {
-        const double sigma = params.getDouble(name);
-        return float(1.4426950408889634 / (2.0 * sigma * sigma));
-    };
-    s_.radius = int(params.getInt("radius"));
-    s_.invTwoSigmaCoord2 = inv("sigmaCoord");
-    s_.invTwoSigmaColor2 = inv("sigmaColor");
-    s_.invTwoSigmaNormal2 = inv("sigmaNormal");
-    s_.invTwoSigmaPlane2 = inv("sigmaPlane");
+    auto inv = [](double sigma) { return float(1.4426950408889634 / (2.0 * sigma * sigma)); };
+    s_.radius = p.radius;
+    s_.invTwoSigmaCoord2 = inv(p.sigmaCoord);
+    s_.invTwoSigmaColor2 = inv(p.sigmaColor);
+    s_.invTwoSigmaNormal2 = inv(p.sigmaNormal);
+    s_.invTwoSigmaPlane2 = inv(p.sigmaPlane);
 }
 
 void JointBilateralPass::execute(FrameContext& ctx, PassIO& io) {
-    const ImageView& out = io.output("color");
+    const ImageView& out = io.output(declaration().colorOut);
     const int w = out.width(), h = out.height();
     GuidePlanes guide(w, h, s_.radius);
     buildGuide(ctx, io, guide);

@@ -14,7 +14,20 @@ namespace kestrel::passes {
 
 class JointBilateralPass final : public Pass {
 public:
-    static PassDesc describe();
+    struct Params {
+        // doubles: the kernel constants below are computed from them in double
+        double sigmaCoord = 32.0, sigmaColor = 0.6, sigmaNormal = 0.1, sigmaPlane = 0.1;
+        int radius = 16;
+    };
+    /// Ports and parameters, declared once (kestrel/Declare.h).
+    struct Declaration : kestrel::Declaration<Params> {
+        Declaration();
+        InputPort color, normal, position, depth, objectId;
+        OutputPort colorOut;
+    };
+    static const Declaration& declaration();
+
+    static PassDesc describe() { return declaration().desc(); }
     explicit JointBilateralPass(const ParamValues& params);
     void execute(FrameContext& ctx, PassIO& io) override;
 

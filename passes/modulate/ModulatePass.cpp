@@ -43,11 +43,12 @@ RowFn pick(bool b) {
 
 /// The pass for this target (its parameters as arguments).
 void executeOnTarget(FrameContext& ctx, PassIO& io, float albedoFloor_) {
-    const ImageView& illum = io.input("illumination");
-    const ImageView* albedo = io.hasInput("albedo") ? &io.input("albedo") : nullptr;
-    const ImageView* emission = io.hasInput("emission") ? &io.input("emission") : nullptr;
-    const ImageView* base = io.hasInput("base") ? &io.input("base") : nullptr;
-    const ImageView& out = io.output("color");
+    const ModulatePass::Declaration& d = ModulatePass::declaration();
+    const ImageView& illum = io.input(d.illumination);
+    const ImageView* albedo = io.has(d.albedo) ? &io.input(d.albedo) : nullptr;
+    const ImageView* emission = io.has(d.emission) ? &io.input(d.emission) : nullptr;
+    const ImageView* base = io.has(d.base) ? &io.input(d.base) : nullptr;
+    const ImageView& out = io.output(d.color);
     const float floor = std::max(albedoFloor_, 1e-8f);  // same divisor as Demodulate
     const int w = ctx.extent.width;
     const RowFn row = albedo ? (emission ? pick<true, true>(base) : pick<true, false>(base))
@@ -74,32 +75,34 @@ HWY_EXPORT(executeOnTarget);
 
 using namespace kestrel;
 
-PassDesc ModulatePass::describe() {
-    PassDesc d("Modulate",
-               "Re-applies albedo and emission: color = illumination * albedo (1 below "
-               "albedoFloor, as Demodulate) +"
-               " emission + base. Identity when nothing optional is bound.");
-    d.input("illumination", Format::Float3, "filtered demodulated illumination")
-        .optionalInput("albedo", Format::Float3, "surface albedo to multiply back")
-        .optionalInput("emission", Format::Float3, "emitted radiance to add back")
-        .optionalInput("base", Format::Float3, "radiance added on top (sums split components)")
-        .output("color", Format::Float3, "radiance")
-        .inPlaceOf("illumination")
-        .paramFloat("albedoFloor", 1e-3, 0.0, 1.0,
-                    "lower bound of the albedo factor (must match Demodulate's)");
+ModulatePass::Declaration::Declaration()
+    : kestrel::Declaration<Params>("Modulate",
+                                   "Re-applies albedo and emission: color = illumination * albedo "
+                                   "(1 below albedoFloor, as Demodulate) + emission + base. "
+                                   "Identity when nothing optional is bound.") {
+    illumination = input("illumination", Format::Float3, "filtered demodulated illumination");
+    albedo = optionalInput("albedo", Format::Float3, "surface albedo to multiply back");
+    emission = optionalInput("emission", Format::Float3, "emitted radiance to add back");
+    base = optionalInput("base", Format::Float3, "radiance added on top (sums split components)");
+    color = output("color", Format::Float3, "radiance", &illumination);
+    param("albedoFloor", &Params::albedoFloor, 0.0, 1.0,
+          "lower bound of the albedo factor (must match Demodulate's)");
+}
+
+const ModulatePass::Declaration& ModulatePass::declaration() {
+    static const Declaration d;
     return d;
 }
 
-ModulatePass::ModulatePass(const ParamValues& p) : albedoFloor_(p.getFloat("albedoFloor")) {}
-
 void ModulatePass::resolve(ResolveContext& rc) {
-    if (!rc.isBound("albedo") && !rc.isBound("emission") && !rc.isBound("base")) {
-        rc.forward("color", "illumination");
+    const Declaration& d = declaration();
+    if (!rc.isBound(d.albedo) && !rc.isBound(d.emission) && !rc.isBound(d.base)) {
+        rc.forward(d.color, d.illumination);
         rc.note("no albedo, emission or base bound: color is the illumination itself");
     }
 }
 
 void ModulatePass::execute(FrameContext& ctx, PassIO& io) {
-    HWY_DYNAMIC_DISPATCH(executeOnTarget)(ctx, io, albedoFloor_);
+    HWY_DYNAMIC_DISPATCH(executeOnTarget)(ctx, io, float(p_.albedoFloor));
 }
 #endif  // HWY_ONCE

@@ -6,11 +6,24 @@
 
 class ModulatePass final : public kestrel::Pass {
 public:
-    static kestrel::PassDesc describe();
-    explicit ModulatePass(const kestrel::ParamValues& p);
+    struct Params {
+        // double only so that the declared default is 1e-3 (a float member declares
+        // double(1e-3f)); the pass works with float(albedoFloor).
+        double albedoFloor = 1e-3;
+    };
+    /// Ports and parameters, declared once (kestrel/Declare.h).
+    struct Declaration : kestrel::Declaration<Params> {
+        Declaration();
+        kestrel::InputPort illumination, albedo, emission, base;
+        kestrel::OutputPort color;
+    };
+    static const Declaration& declaration();
+
+    static kestrel::PassDesc describe() { return declaration().desc(); }
+    explicit ModulatePass(const kestrel::ParamValues& p) : p_(declaration().read(p)) {}
     void resolve(kestrel::ResolveContext& rc) override;
     void execute(kestrel::FrameContext& ctx, kestrel::PassIO& io) override;
 
 private:
-    float albedoFloor_;
+    Params p_;
 };

@@ -2,34 +2,41 @@
 
 using namespace kestrel;
 
-PassDesc SelectPass::describe() {
-    PassDesc d("Select",
-               "Forwards 'preferred' when it is produced for this scene, else 'fallback' (chosen at"
-               " compile time; the unused branch is pruned).");
-    d.optionalInput("preferred", Format::Any, "first choice")
-        .optionalInput("fallback", Format::Any, "used when 'preferred' has no producer")
-        .output("output", Format::Any, "the chosen input");
+SelectPass::Declaration::Declaration()
+    : kestrel::Declaration<Params>(
+          "Select",
+          "Forwards 'preferred' when it is produced for this scene, else 'fallback' (chosen at"
+          " compile time; the unused branch is pruned).") {
+    preferred = optionalInput("preferred", Format::Any, "first choice");
+    fallback = optionalInput("fallback", Format::Any, "used when 'preferred' has no producer");
+    out = output("output", Format::Any, "the chosen input");
+}
+
+const SelectPass::Declaration& SelectPass::declaration() {
+    static const Declaration d;
     return d;
 }
 
 void SelectPass::resolve(ResolveContext& rc) {
-    if (rc.isBound("preferred")) {
-        rc.forward("output", "preferred");
+    const Declaration& d = declaration();
+    if (rc.isBound(d.preferred)) {
+        rc.forward(d.out, d.preferred);
         rc.note("using 'preferred'");
-    } else if (rc.isBound("fallback")) {
-        rc.forward("output", "fallback");
+    } else if (rc.isBound(d.fallback)) {
+        rc.forward(d.out, d.fallback);
         rc.note("'preferred' is not produced for this scene: using 'fallback'");
     } else {
         // Name what each branch lacks (a missing channel and how to enable it), once where
         // both lack the same.
-        const std::string a = rc.unboundReason("preferred"), b = rc.unboundReason("fallback");
+        const std::string a = rc.unboundReason(d.preferred.name),
+                          b = rc.unboundReason(d.fallback.name);
         std::string why = "neither 'preferred' nor 'fallback' is produced for this scene";
         if (a == b && !a.empty())
             why += ": " + a;
         else if (!a.empty() || !b.empty())
             why += ": 'preferred': " + (a.empty() ? "unbound" : a) +
                    "; 'fallback': " + (b.empty() ? "unbound" : b);
-        rc.setAbsent("output", why);
+        rc.setAbsent(d.out, why);
     }
 }
 

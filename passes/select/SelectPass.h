@@ -6,7 +6,16 @@
 
 class SelectPass final : public kestrel::Pass {
 public:
-    static kestrel::PassDesc describe();
+    struct Params {};
+    /// Ports, declared once (kestrel/Declare.h); Select has no parameters.
+    struct Declaration : kestrel::Declaration<Params> {
+        Declaration();
+        kestrel::InputPort preferred, fallback;
+        kestrel::OutputPort out;  ///< the port `output`
+    };
+    static const Declaration& declaration();
+
+    static kestrel::PassDesc describe() { return declaration().desc(); }
     explicit SelectPass(const kestrel::ParamValues&) {}
     void resolve(kestrel::ResolveContext& rc) override;
     void execute(kestrel::FrameContext& ctx, kestrel::PassIO& io) override;

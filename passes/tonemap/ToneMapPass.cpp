@@ -34,30 +34,30 @@ float srgbEncode(float x) {
     return x <= 0.0031308f ? 12.92f * x : 1.055f * std::pow(x, 1.f / 2.4f) - 0.055f;
 }
 
-PassDesc ToneMapPass::describe() {
-    PassDesc d("ToneMap",
-               "Linear HDR colour to display [0,1]: exposure, tone curve, sRGB encoding");
-    d.input("color", Format::Float3, "linear HDR colour")
-        .output("color", Format::Float3, "tone-mapped colour in [0,1]")
-        .paramFloat("exposure", 0.0, -30.0, 30.0,
-                    "exposure in stops: colour is scaled by 2^exposure")
-        .paramEnum("operator", "aces", {"reinhard", "aces", "clamp"},
-                   "tone curve: reinhard x/(1+x), aces (Narkowicz fit), clamp to [0,1]")
-        .paramBool("srgb", true, "apply the sRGB transfer function (off: linear [0,1] output)");
+ToneMapPass::Declaration::Declaration()
+    : kestrel::Declaration<Params>(
+          "ToneMap", "Linear HDR colour to display [0,1]: exposure, tone curve, sRGB encoding") {
+    color = input("color", Format::Float3, "linear HDR colour");
+    colorOut = output("color", Format::Float3, "tone-mapped colour in [0,1]");
+    param("exposure", &Params::exposure, -30.0, 30.0,
+          "exposure in stops: colour is scaled by 2^exposure");
+    param("operator", &Params::op, {"reinhard", "aces", "clamp"},
+          "tone curve: reinhard x/(1+x), aces (Narkowicz fit), clamp to [0,1]");
+    param("srgb", &Params::srgb, "apply the sRGB transfer function (off: linear [0,1] output)");
+}
+
+const ToneMapPass::Declaration& ToneMapPass::declaration() {
+    static const Declaration d;
     return d;
 }
 
 ToneMapPass::ToneMapPass(const ParamValues& params)
-    : scale_(float(std::exp2(params.getDouble("exposure")))), srgb_(params.getBool("srgb")) {
-    const std::string& op = params.getString("operator");
-    op_ = op == "reinhard" ? ToneOperator::Reinhard
-          : op == "clamp"  ? ToneOperator::Clamp
-                           : ToneOperator::Aces;
-}
+    : p_(declaration().read(params)), scale_(float(std::exp2(p_.exposure))) {}
 
 void ToneMapPass::execute(FrameContext& ctx, PassIO& io) {
-    const ImageView& in = io.input("color");
-    const ImageView& out = io.output("color");
+    const Declaration& d = declaration();
+    const ImageView& in = io.input(d.color);
+    const ImageView& out = io.output(d.colorOut);
     const int w = in.width();
     ctx.parallelRows(in.height(), [&](int y0, int y1) {
         for (int c = 0; c < 3; ++c)
@@ -65,8 +65,8 @@ void ToneMapPass::execute(FrameContext& ctx, PassIO& io) {
                 const float* src = in.row(c, y);
                 float* dst = out.row(c, y);
                 for (int x = 0; x < w; ++x) {
-                    float v = toneMapValue(src[x] * scale_, op_);
-                    dst[x] = srgb_ ? srgbEncode(v) : v;
+                    float v = toneMapValue(src[x] * scale_, p_.op);
+                    dst[x] = p_.srgb ? srgbEncode(v) : v;
                 }
             }
     });

@@ -14,14 +14,26 @@ float srgbEncode(float x);
 
 class ToneMapPass final : public Pass {
 public:
-    static PassDesc describe();
+    struct Params {
+        double exposure = 0.0;  ///< double: the scale 2^exposure is computed in double
+        ToneOperator op = ToneOperator::Aces;
+        bool srgb = true;
+    };
+    /// Ports and parameters, declared once (kestrel/Declare.h).
+    struct Declaration : kestrel::Declaration<Params> {
+        Declaration();
+        InputPort color;
+        OutputPort colorOut;
+    };
+    static const Declaration& declaration();
+
+    static PassDesc describe() { return declaration().desc(); }
     explicit ToneMapPass(const ParamValues& params);
     void execute(FrameContext& ctx, PassIO& io) override;
 
 private:
+    Params p_;
     float scale_ = 1.f;  // 2^exposure
-    ToneOperator op_ = ToneOperator::Aces;
-    bool srgb_ = true;
 };
 
 }  // namespace kestrel::passes

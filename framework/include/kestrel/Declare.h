@@ -104,6 +104,15 @@ protected:
                 if (choices[i] == s) p.*member = E(i);
         });
     }
+    /// A float parameter read into a double member (getDouble), for a value used in double
+    /// arithmetic: its default and value stay as written instead of rounded to float (0.6 and
+    /// double(0.6f) differ).
+    void param(std::string name, double Params::*member, double min, double max,
+               std::string description) {
+        desc_.paramFloat(name, Params{}.*member, min, max, std::move(description));
+        readers_.push_back(
+            [member, name](Params& p, const ParamValues& v) { p.*member = v.getDouble(name); });
+    }
 
     /// A float parameter as `param`, declared with the shortest decimal that reads back as the
     /// member's float: 0.2f is declared 0.2, as written in the struct, not 0.20000000298023224

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <string>
+#include <variant>
 
 #include "TestPasses.h"
 
@@ -96,6 +97,16 @@ struct FusingDeclaration : Declaration<DecimalParams> {
     OutputPort out;
 };
 
+/// A double parameter: its default and its value reach the struct unrounded.
+struct DoubleParams {
+    double sigma = 0.6;
+};
+struct DoubleDeclaration : Declaration<DoubleParams> {
+    DoubleDeclaration() : Declaration<DoubleParams>("Double", "double parameter under test") {
+        param("sigma", &DoubleParams::sigma, 1e-4, 1e6, "a sigma used in double arithmetic");
+    }
+};
+
 }  // namespace
 
 TEST(Declaration, DecimalDefaultsAreAsWrittenAndReadBackAsTheFloat) {
@@ -144,6 +155,16 @@ TEST(Declaration, ParametersArriveAsTheStruct) {
     EXPECT_FLOAT_EQ(with(R"({"offset": 1, "repeat": 3})"), 6.f);
     EXPECT_FLOAT_EQ(with(R"({"offset": 2, "repeat": 2, "mode": "scale"})"), 12.f);
     EXPECT_FLOAT_EQ(with(R"({"enabled": false})"), 3.f);  // forwarded by handle
+}
+
+TEST(Declaration, DoubleParametersKeepTheirDoubleValue) {
+    const DoubleDeclaration d;
+    const ParamDesc* sigma = d.desc().findParam("sigma");
+    ASSERT_NE(sigma, nullptr);
+    EXPECT_EQ(sigma->type, ParamType::Float);
+    EXPECT_EQ(std::get<double>(sigma->defaultValue), 0.6);  // not double(0.6f)
+    EXPECT_EQ(d.read(ParamValues({{"sigma", 0.6}})).sigma, 0.6);
+    EXPECT_EQ(d.read(ParamValues({{"sigma", int64_t(2)}})).sigma, 2.0);
 }
 
 TEST(Declaration, HandlesReachTheirOwnPortWhereNamesRepeat) {
