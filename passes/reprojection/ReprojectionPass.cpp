@@ -645,16 +645,16 @@ inline int nextFlag(const uint8_t* flags, int from, int end) {
 }
 thread_local Scratch tScratch;
 
-/// The pass for this target (the `filter` and threshold parameters as arguments).
-void reproject(FrameContext& ctx, PassIO& io, bool catmullRom_, bool cameraDepth_,
-               float depthThreshold_, float normalThreshold_, float depthPrecision_) {
+/// The pass for this target.
+void reproject(FrameContext& ctx, PassIO& io, const ReprojectionPass::Settings& settings) {
+    const ReprojectionPass::Declaration& dc = ReprojectionPass::declaration();
     const int w = ctx.extent.width, h = ctx.extent.height;
-    const ImageView* outC = io.hasOutput("color") ? &io.output("color") : nullptr;
-    const ImageView* outM = io.hasOutput("moments") ? &io.output("moments") : nullptr;
-    const ImageView* outH = io.hasOutput("historyLength") ? &io.output("historyLength") : nullptr;
-    const ImageView* outB = io.hasOutput("resampleBlur") ? &io.output("resampleBlur") : nullptr;
-    int32_t* outTaps = io.hasOutput("taps") ? io.output("taps").ints() : nullptr;
-    const int32_t* shared = io.hasInput("sharedTaps") ? io.input("sharedTaps").ints() : nullptr;
+    const ImageView* outC = io.has(dc.color) ? &io.output(dc.color) : nullptr;
+    const ImageView* outM = io.has(dc.moments) ? &io.output(dc.moments) : nullptr;
+    const ImageView* outH = io.has(dc.historyLength) ? &io.output(dc.historyLength) : nullptr;
+    const ImageView* outB = io.has(dc.resampleBlur) ? &io.output(dc.resampleBlur) : nullptr;
+    int32_t* outTaps = io.has(dc.taps) ? io.output(dc.taps).ints() : nullptr;
+    const int32_t* shared = io.has(dc.sharedTaps) ? io.input(dc.sharedTaps).ints() : nullptr;
     if (shared && outTaps) {  // resolve leaves taps out then; a harness may still ask for it
         std::copy_n(shared, size_t(w) * size_t(h), outTaps);
         outTaps = nullptr;
@@ -666,23 +666,23 @@ void reproject(FrameContext& ctx, PassIO& io, bool catmullRom_, bool cameraDepth
                     std::fill(o->channel(c), o->channel(c) + o->pixels(), 0.f);
         if (outTaps) std::fill(outTaps, outTaps + size_t(w) * size_t(h), 0);
     };
-    const bool colorValid = io.hasInput("prevColor"), momentsValid = io.hasInput("prevMoments");
-    const bool hlValid = io.hasInput("prevHistoryLength");
+    const bool colorValid = io.has(dc.prevColor), momentsValid = io.has(dc.prevMoments);
+    const bool hlValid = io.has(dc.prevHistoryLength);
     // Without last frame's geometry no tap can be tested; without any history there is nothing
     // to reproject: all outputs 0, history length 0.
-    if (!io.hasInput("prevDepth") || !io.hasInput("prevNormal") || (!colorValid && !momentsValid)) {
+    if (!io.has(dc.prevDepth) || !io.has(dc.prevNormal) || (!colorValid && !momentsValid)) {
         zeroAll();
         return;
     }
-    const ImageView& depth = io.input("depth");
-    const ImageView& normal = io.input("normal");
-    const ImageView& pDepth = io.input("prevDepth");
-    const ImageView& pNormal = io.input("prevNormal");
-    const bool useIds = io.hasInput("objectId") && io.hasInput("prevObjectId");
-    const int32_t* curIds = io.hasInput("objectId") ? io.input("objectId").ints() : nullptr;
+    const ImageView& depth = io.input(dc.depth);
+    const ImageView& normal = io.input(dc.normal);
+    const ImageView& pDepth = io.input(dc.prevDepth);
+    const ImageView& pNormal = io.input(dc.prevNormal);
+    const bool useIds = io.has(dc.objectId) && io.has(dc.prevObjectId);
+    const int32_t* curIds = io.has(dc.objectId) ? io.input(dc.objectId).ints() : nullptr;
     const int32_t* ids = useIds ? curIds : nullptr;
-    const ImageView* motion = io.hasInput("motion") ? &io.input("motion") : nullptr;
-    const ImageView* position = io.hasInput("position") ? &io.input("position") : nullptr;
+    const ImageView* motion = io.has(dc.motion) ? &io.input(dc.motion) : nullptr;
+    const ImageView* position = io.has(dc.position) ? &io.input(dc.position) : nullptr;
     const bool matrices = !motion && position && ctx.scene && ctx.previousScene &&
                           ctx.scene->hasCamera && ctx.previousScene->hasCamera;
     std::optional<TransformTable> table;
@@ -693,15 +693,15 @@ void reproject(FrameContext& ctx, PassIO& io, bool catmullRom_, bool cameraDepth
     S.h = h;
     S.pz = pDepth.channel(0);
     for (int c = 0; c < 3; ++c) S.pn[c] = pNormal.channel(c);
-    S.pIds = useIds ? io.input("prevObjectId").ints() : nullptr;
+    S.pIds = useIds ? io.input(dc.prevObjectId).ints() : nullptr;
     if (colorValid)
-        for (int c = 0; c < 3; ++c) S.pc[c] = io.input("prevColor").channel(c);
+        for (int c = 0; c < 3; ++c) S.pc[c] = io.input(dc.prevColor).channel(c);
     if (momentsValid)
-        for (int c = 0; c < 2; ++c) S.pm[c] = io.input("prevMoments").channel(c);
-    if (hlValid) S.ph = io.input("prevHistoryLength").channel(0);
-    S.dThr = depthThreshold_;
-    S.nThr2 = normalThreshold_ * normalThreshold_;
-    S.catmullRom = catmullRom_ && colorValid;
+        for (int c = 0; c < 2; ++c) S.pm[c] = io.input(dc.prevMoments).channel(c);
+    if (hlValid) S.ph = io.input(dc.prevHistoryLength).channel(0);
+    S.dThr = settings.depthThreshold;
+    S.nThr2 = settings.normalThreshold * settings.normalThreshold;
+    S.catmullRom = settings.catmullRom && colorValid;
     S.shared = shared;
     // Tap margin of the tap kernel around (x0, y0): Catmull-Rom reads x0-1..x0+2.
     const bool cr = S.catmullRom;
@@ -712,7 +712,7 @@ void reproject(FrameContext& ctx, PassIO& io, bool catmullRom_, bool cameraDepth
     // With motion vectors only, the depth a static surface had last frame comes from a camera
     // model fitted to this frame's correspondences (DepthChangeModel.h); the identity otherwise.
     DepthChangeModel depthChange;
-    if (motion && cameraDepth_ && geometry && std::isfinite(S.dThr)) {
+    if (motion && settings.cameraDepth && geometry && std::isfinite(S.dThr)) {
         const DepthChangeInputs fit{w,
                                     h,
                                     depth.channel(0),
@@ -722,7 +722,7 @@ void reproject(FrameContext& ctx, PassIO& io, bool catmullRom_, bool cameraDepth
                                     pDepth.channel(0),
                                     S.pIds,
                                     S.dThr,
-                                    depthPrecision_};
+                                    settings.depthPrecision};
         depthChange = fitDepthChange(fit);
     }
 
@@ -774,7 +774,7 @@ void reproject(FrameContext& ctx, PassIO& io, bool catmullRom_, bool cameraDepth
             const int yu = u ? y - 1 : y, yd = d ? y + 1 : y;  // absent neighbours are not used
             if (d) sanitizeGeom(y + 1);
             GeomRows g;
-            g.depthStep = depthPrecision_;
+            g.depthStep = settings.depthPrecision;
             for (int j = 0; j < 3; ++j) {
                 const int yy = j == 0 ? y : j == 1 ? yu : yd;
                 g.z[j] = geomSlot(yy, 0);
@@ -960,95 +960,106 @@ HWY_EXPORT(reproject);
 
 using namespace kestrel;
 
-namespace {
-constexpr float kNoTest = std::numeric_limits<float>::infinity();
-}  // namespace
+ReprojectionPass::Declaration::Declaration()
+    : kestrel::Declaration<Params>(
+          "Reprojection",
+          "Reprojects last frame's colour, moments and history length into this frame:"
+          " position from motion vectors, else world position + per-object and camera"
+          " matrices, else identity; 2x2 bilinear taps with depth/normal/id consistency"
+          " tests, 3x3 fallback, else disocclusion (historyLength 0). Optional Catmull-Rom"
+          " colour resampling for TAA histories.") {
+    depth = input("depth", Format::Float, "linear view depth");
+    normal = input("normal", Format::Float3, "world-space normal");
+    objectId =
+        optionalInput("objectId", Format::Int32, "object id (taps on another object are rejected)");
+    motion = optionalInput("motion", Format::Float2, "screen motion to the previous frame, pixels");
+    position = optionalInput("position", Format::Float3, "world position (matrix reprojection)");
+    prevDepth = historyInput("prevDepth", Format::Float, "last frame's depth");
+    prevNormal = historyInput("prevNormal", Format::Float3, "last frame's normal");
+    prevObjectId = historyInput("prevObjectId", Format::Int32, "last frame's object id");
+    prevColor = historyInput("prevColor", Format::Float3, "last frame's colour history");
+    prevMoments = historyInput("prevMoments", Format::Float2, "last frame's moments history");
+    prevHistoryLength =
+        historyInput("prevHistoryLength", Format::Float, "last frame's history length");
+    sharedTaps = optionalInput("sharedTaps", Format::Int32,
+                               "another Reprojection's `taps` over the same geometry, motion and "
+                               "thresholds (the specular chain takes the diffuse chain's): its "
+                               "outcomes replace this pass's consistency tests, which are then not "
+                               "run (a bilinear pass's taps hold no outer taps: Catmull-Rom then "
+                               "resamples bilinearly)");
+    color = output("color", Format::Float3, "reprojected colour (0 where disoccluded)");
+    moments = output("moments", Format::Float2, "reprojected moments (0 where disoccluded)");
+    historyLength = output("historyLength", Format::Float,
+                           "reprojected history length, 0 where disoccluded or without valid "
+                           "history; when prevHistoryLength is not fed, 1 where the reprojection "
+                           "succeeded");
+    resampleBlur = output("resampleBlur", Format::Float,
+                          "how much resampling the history blurs it, in [0, 1]: 2 (fx (1 - fx) + "
+                          "fy (1 - fy)) of the reprojected position's fractions fx, fy between "
+                          "pixel centres (0 on a centre, 1 midway between four), 1 on the 3x3 "
+                          "fallback, 0 where disoccluded (TAA weights the history down by it, "
+                          "Karis 2014)");
+    taps = output("taps", Format::Int32,
+                  "which taps passed the consistency tests, a bit per tap (the 4x4 Catmull-Rom "
+                  "footprint, the 3x3 fallback), for another reprojection's sharedTaps");
+    param("filter", &Params::filter, {"bilinear", "catmullrom"},
+          "colour resampling: bilinear (SVGF) or Catmull-Rom 4x4 (sharp, for TAA)");
+    param("depthThreshold", &Params::depthThreshold, 0.0, 1e6,
+          "max |z_expected - z_prev| / (fwidth(z) + 0.01) of a consistent tap");
+    param("depthPrediction", &Params::depthPrediction, {"camera", "none"},
+          "z_expected with motion vectors: camera (z_prev = z (a u + b v + c) + d, a pinhole "
+          "camera's rigid motion fitted per frame to the motion vectors' correspondences, so a "
+          "dollying camera keeps the history of surfaces facing it) or none (z itself, SVGF's "
+          "test); the matrix path uses the matrices");
+    param("normalThreshold", &Params::normalThreshold, 0.0, 1e6,
+          "max |n - n_prev| / (fwidth(n) + 0.01) of a consistent tap");
+    param("geometryTests", &Params::geometryTests,
+          "the depth and normal tests (the object id and screen bounds are always tested); off "
+          "for TAA histories on jittered G-buffers (a pixel filter wider than a pixel), where "
+          "each frame's depth and normal are another sample of the footprint, the tests reject "
+          "the edges TAA exists to accumulate, and TAA's neighbourhood clip rejects stale "
+          "history instead (Karis 2014)");
+}
 
-PassDesc ReprojectionPass::describe() {
-    PassDesc d("Reprojection",
-               "Reprojects last frame's colour, moments and history length into this frame:"
-               " position from motion vectors, else world position + per-object and camera"
-               " matrices, else identity; 2x2 bilinear taps with depth/normal/id consistency"
-               " tests, 3x3 fallback, else disocclusion (historyLength 0). Optional Catmull-Rom"
-               " colour resampling for TAA histories.");
-    d.input("depth", Format::Float, "linear view depth")
-        .input("normal", Format::Float3, "world-space normal")
-        .optionalInput("objectId", Format::Int32, "object id (taps on another object are rejected)")
-        .optionalInput("motion", Format::Float2, "screen motion to the previous frame, pixels")
-        .optionalInput("position", Format::Float3, "world position (matrix reprojection)")
-        .historyInput("prevDepth", Format::Float, "last frame's depth")
-        .historyInput("prevNormal", Format::Float3, "last frame's normal")
-        .historyInput("prevObjectId", Format::Int32, "last frame's object id")
-        .historyInput("prevColor", Format::Float3, "last frame's colour history")
-        .historyInput("prevMoments", Format::Float2, "last frame's moments history")
-        .historyInput("prevHistoryLength", Format::Float, "last frame's history length")
-        .optionalInput("sharedTaps", Format::Int32,
-                       "another Reprojection's `taps` over the same geometry, motion and "
-                       "thresholds (the specular chain takes the diffuse chain's): its outcomes "
-                       "replace this pass's consistency tests, which are then not run (a "
-                       "bilinear pass's taps hold no outer taps: Catmull-Rom then resamples "
-                       "bilinearly)")
-        .output("color", Format::Float3, "reprojected colour (0 where disoccluded)")
-        .output("moments", Format::Float2, "reprojected moments (0 where disoccluded)")
-        .output("historyLength", Format::Float,
-                "reprojected history length, 0 where disoccluded or without valid history; when"
-                " prevHistoryLength is not fed, 1 where the reprojection succeeded")
-        .output("resampleBlur", Format::Float,
-                "how much resampling the history blurs it, in [0, 1]: 2 (fx (1 - fx) + fy (1 - "
-                "fy)) of the reprojected position's fractions fx, fy between pixel centres (0 on "
-                "a centre, 1 midway between four), 1 on the 3x3 fallback, 0 where disoccluded "
-                "(TAA weights the history down by it, Karis 2014)")
-        .output("taps", Format::Int32,
-                "which taps passed the consistency tests, a bit per tap (the 4x4 Catmull-Rom "
-                "footprint, the 3x3 fallback), for another reprojection's sharedTaps")
-        .paramEnum("filter", "bilinear", {"bilinear", "catmullrom"},
-                   "colour resampling: bilinear (SVGF) or Catmull-Rom 4x4 (sharp, for TAA)")
-        .paramFloat("depthThreshold", 10.0, 0.0, 1e6,
-                    "max |z_expected - z_prev| / (fwidth(z) + 0.01) of a consistent tap")
-        .paramEnum("depthPrediction", "camera", {"camera", "none"},
-                   "z_expected with motion vectors: camera (z_prev = z (a u + b v + c) + d, "
-                   "a pinhole camera's rigid motion fitted per frame to the motion vectors' "
-                   "correspondences, so a dollying camera keeps the history of surfaces facing "
-                   "it) or none (z itself, SVGF's test); the matrix path uses the matrices")
-        .paramFloat("normalThreshold", 16.0, 0.0, 1e6,
-                    "max |n - n_prev| / (fwidth(n) + 0.01) of a consistent tap")
-        .paramBool("geometryTests", true,
-                   "the depth and normal tests (the object id and screen bounds are always "
-                   "tested); off for TAA histories on jittered G-buffers (a pixel filter wider "
-                   "than a pixel), where each frame's depth and normal are another sample of "
-                   "the footprint, the tests reject the edges TAA exists to accumulate, and "
-                   "TAA's neighbourhood clip rejects stale history instead (Karis 2014)");
+const ReprojectionPass::Declaration& ReprojectionPass::declaration() {
+    static const Declaration d;
     return d;
 }
 
-ReprojectionPass::ReprojectionPass(const ParamValues& p)
-    : catmullRom_(p.getString("filter") == "catmullrom"),
-      cameraDepth_(p.getString("depthPrediction") == "camera"),
-      // Without the geometry tests every tap passes them: an infinite threshold is passed by
-      // any finite distance (and a NaN normal still fails, as with the tests).
-      depthThreshold_(p.getBool("geometryTests") ? p.getFloat("depthThreshold") : kNoTest),
-      normalThreshold_(p.getBool("geometryTests") ? p.getFloat("normalThreshold") : kNoTest) {}
+namespace {
+ReprojectionPass::Settings settingsOf(const ReprojectionPass::Params& p) {
+    // Without the geometry tests every tap passes them: an infinite threshold is passed by any
+    // finite distance (and a NaN normal still fails, as with the tests).
+    constexpr float kNoTest = std::numeric_limits<float>::infinity();
+    return {p.filter == ReprojectionPass::Filter::CatmullRom,
+            p.depthPrediction == ReprojectionPass::DepthPrediction::Camera,
+            p.geometryTests ? p.depthThreshold : kNoTest,
+            p.geometryTests ? p.normalThreshold : kNoTest};
+}
+}  // namespace
+
+ReprojectionPass::ReprojectionPass(const ParamValues& p) : s_(settingsOf(declaration().read(p))) {}
 
 void ReprojectionPass::resolve(ResolveContext& rc) {
-    if (!rc.isBound("prevColor")) rc.setAbsent("color", "prevColor is not connected");
-    if (!rc.isBound("prevMoments")) rc.setAbsent("moments", "prevMoments is not connected");
-    depthPrecision_ = depthPrecision(rc);
-    if (rc.isBound("sharedTaps")) {
-        rc.setAbsent("taps", "the taps come from sharedTaps");
+    const Declaration& d = declaration();
+    if (!rc.isBound(d.prevColor)) rc.setAbsent(d.color, "prevColor is not connected");
+    if (!rc.isBound(d.prevMoments)) rc.setAbsent(d.moments, "prevMoments is not connected");
+    s_.depthPrecision = depthPrecision(rc);
+    if (rc.isBound(d.sharedTaps)) {
+        rc.setAbsent(d.taps, "the taps come from sharedTaps");
         rc.note("consistency tests taken from sharedTaps");
     }
-    if (rc.isBound("motion")) {
+    if (rc.isBound(d.motion)) {
         rc.note("reprojecting with motion vectors");
         // World positions serve only the matrix path: not read, so the loader skips them.
-        if (rc.isBound("position")) rc.ignoreInput("position", "motion vectors are given");
-    } else if (rc.isBound("position"))
+        if (rc.isBound(d.position)) rc.ignoreInput(d.position, "motion vectors are given");
+    } else if (rc.isBound(d.position))
         rc.note("reprojecting with world positions and matrices");
     else
         rc.note("no motion and no position: identity reprojection (static camera assumed)");
 }
 
 void ReprojectionPass::execute(FrameContext& ctx, PassIO& io) {
-    HWY_DYNAMIC_DISPATCH(reproject)
-    (ctx, io, catmullRom_, cameraDepth_, depthThreshold_, normalThreshold_, depthPrecision_);
+    HWY_DYNAMIC_DISPATCH(reproject)(ctx, io, s_);
 }
 #endif  // HWY_ONCE
