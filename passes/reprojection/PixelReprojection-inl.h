@@ -113,8 +113,9 @@ inline void catmullRomColor(const Sources& S, int x0, int y0, float fx, float fy
 
 // The complete per-pixel reprojection (bilinear taps, 3x3 fallback, Catmull-Rom), scalar, with
 // bounds checks on every tap. Used for the pixels the tap kernel does not take: taps near the
-// image border or off screen, invalid positions, and the (rare) 3x3 fallback.
-PixelOut reprojectPixel(const Sources& S, const PixelRef& P) {
+// image border or off screen, invalid positions, and the (rare) 3x3 fallback. Not inlined: the
+// row loop that calls it for those few pixels stays as small as it was in one file.
+HWY_NOINLINE PixelOut reprojectPixel(const Sources& S, const PixelRef& P) {
     const int w = S.w, h = S.h;
     const bool shared = S.shared != nullptr;
     int32_t taps = 0;
