@@ -9,14 +9,39 @@
 
 class ReprojectionPass final : public kestrel::Pass {
 public:
-    static kestrel::PassDesc describe();
+    enum class Filter { Bilinear, CatmullRom };
+    enum class DepthPrediction { Camera, None };
+    struct Params {
+        Filter filter = Filter::Bilinear;
+        float depthThreshold = 10.f;
+        DepthPrediction depthPrediction = DepthPrediction::Camera;
+        float normalThreshold = 16.f;
+        bool geometryTests = true;
+    };
+    /// Ports and parameters, declared once (kestrel/Declare.h).
+    struct Declaration : kestrel::Declaration<Params> {
+        Declaration();
+        kestrel::InputPort depth, normal, objectId, motion, position;
+        kestrel::InputPort prevDepth, prevNormal, prevObjectId, prevColor, prevMoments,
+            prevHistoryLength, sharedTaps;
+        kestrel::OutputPort color, moments, historyLength, resampleBlur, taps;
+    };
+    static const Declaration& declaration();
+
+    /// What a frame's reprojection takes from the parameters and the compiled graph.
+    struct Settings {
+        bool catmullRom;
+        bool
+            cameraDepth;  ///< predict last frame's depth with the fitted camera model (motion path)
+        float depthThreshold, normalThreshold;  ///< infinite without the geometry tests
+        float depthPrecision = 0.f;  ///< relative step of the stored depth (kDepthPrecisionFact)
+    };
+
+    static kestrel::PassDesc describe() { return declaration().desc(); }
     explicit ReprojectionPass(const kestrel::ParamValues& p);
     void resolve(kestrel::ResolveContext& rc) override;
     void execute(kestrel::FrameContext& ctx, kestrel::PassIO& io) override;
 
 private:
-    bool catmullRom_;
-    bool cameraDepth_;  ///< predict last frame's depth with the fitted camera model (motion path)
-    float depthThreshold_, normalThreshold_;
-    float depthPrecision_ = 0.f;  ///< relative step of the stored depth (kDepthPrecisionFact)
+    Settings s_;
 };
