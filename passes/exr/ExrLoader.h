@@ -3,6 +3,7 @@
 // (canonical, Blender Cycles multilayer, GAMES202 homework), converting each to the in-memory
 // conventions of kestrel/Conventions.h, and reads only the channels a consumer needs.
 // Parameters and layouts: docs/layouts.md.
+#include <array>
 #include <atomic>
 #include <future>
 #include <map>
@@ -14,8 +15,10 @@
 
 #include "ChannelPlan.h"
 #include "ExrInput.h"
+#include "LoaderRouting.h"
 #include "PixelJitter.h"
 #include "SceneMatrices.h"
+#include "kestrel/Declare.h"
 #include "kestrel/FramePattern.h"
 #include "kestrel/Kestrel.h"
 
@@ -23,7 +26,31 @@ namespace kestrel::exr {
 
 class ExrLoader : public Pass {
 public:
-    static PassDesc describe();
+    enum class LayoutChoice { Auto, Canonical, Blender, Games202 };
+    enum class AntiAliasedChoice { Auto, True, False };
+    struct Params {
+        std::string path;
+        LayoutChoice layout = LayoutChoice::Auto;
+        std::string layer;
+        std::string camera;
+        std::string channels;
+        AntiAliasedChoice antiAliased = AntiAliasedChoice::Auto;
+        int64_t maxPixels = int64_t(1) << 27;
+        bool prefetch = false;
+    };
+    /// Ports and parameters, declared once (kestrel/Declare.h). The outputs are the data of
+    /// loaderOutputs() (ChannelPlan.cpp), which the plans build their recipes from.
+    struct Declaration : kestrel::Declaration<Params> {
+        Declaration();
+        /// One per loader output, in declaration order: outputs[k] is Plan::recipes[k]'s.
+        std::vector<OutputPort> outputs;
+        /// The ones execute reaches by name (specular's rest from the colour, diffuse and
+        /// emission planes).
+        OutputPort color, diffuse, emission;
+    };
+    static const Declaration& declaration();
+
+    static PassDesc describe() { return declaration().desc(); }
     explicit ExrLoader(const ParamValues& params);
     ~ExrLoader() override;
 
@@ -41,8 +68,39 @@ public:
     const Plan& plan() const { return plan_; }
 
 private:
-    struct Sources;  // GAMES202 file roles or the single file
-    void ensurePlan(int64_t frame, std::vector<std::string>* notes);
+    using Notes = std::vector<std::string>;
+    static constexpr const char* kGames202Roles[] = {"beauty", "normal", "position", "depth", "ID"};
+    void ensurePlan(int64_t frame, Notes* notes);
+    /// ensurePlan's steps: which files (GAMES202 or one per frame; sets pattern_), the frame
+    /// probed, the plan of each layout, and the plan's adaptations to what the render lacks.
+    bool choosePattern(std::string& pattern, bool& namedLikeBeauty);
+    int64_t probedFrame(int64_t frame, const std::string& pattern, Notes& notes) const;
+    void planGames202Files(int64_t first, const std::string& firstPath, ChannelSets& sets,
+                           Notes& notes);
+    std::unique_ptr<ExrInput> planSingleFile(int64_t first, const std::string& firstPath,
+                                             ChannelSets& sets, Notes& notes);
+    void planBlenderFile(const std::string& firstPath, const std::vector<std::string>& layers,
+                         const ChannelSets& sets, Notes& notes);
+    void adaptPlan(ExrInput* probed, int64_t first, const ChannelSets& sets, Notes& notes);
+    /// The output handle of a recipe of plan_ (the same place in the declaration).
+    const OutputPort& port(const Recipe* r) const;
+    const ImageView& output(PassIO& io, const Recipe* r) const { return io.output(port(r)); }
+    float* plane(PassIO& io, const Routing::Slot& s) const;
+    /// execute's steps.
+    const Routing& routingFor(const PassIO& io);
+    void bindPlanes(PassIO& io, const Routing& rt, size_t N);
+    size_t decode(FrameContext& ctx, PassIO& io, const Routing& rt,
+                  std::map<ChannelRef, std::atomic<size_t>>& replaced);
+    void computeComposites(FrameContext& ctx, PassIO& io, const Routing& rt,
+                           const std::vector<Deferred>& deferred,
+                           std::vector<std::array<std::atomic<size_t>, 4>>& compositeReplaced);
+    void computeDerived(FrameContext& ctx, PassIO& io, const Routing& rt, int W, int H);
+    void applyConventions(FrameContext& ctx, PassIO& io, const Routing& rt, size_t N);
+    std::vector<std::pair<std::string, size_t>> replacedByOutput(
+        FrameContext& ctx, PassIO& io, const Routing& rt,
+        const std::vector<std::array<std::atomic<size_t>, 4>>& compositeReplaced,
+        const std::map<ChannelRef, std::atomic<size_t>>& decoded, int W, int H) const;
+    void logChannels(size_t N, size_t fileBytes);
     std::string filePath(const std::string& role, int64_t frame) const;
     ExrInput& openRole(const std::string& role, int64_t frame);
     /// Throws FrameError naming the file and frame when this frame's size is not the first
@@ -96,11 +154,8 @@ private:
                        const std::map<ChannelRef, float>& direct);
     void joinPrefetch();
 
-    // parameters
-    std::string path_, layoutParam_, cameraParam_, channelsParam_, antiAliasedParam_, layerParam_;
-    int64_t maxPixels_;
+    Params p_;
     int threads_ = 1;  // the engine's, for decoding (set by beginFrame)
-    bool prefetch_ = true;
 
     // compile-time state (from the first frame; immutable while frames run)
     bool planned_ = false;
@@ -122,6 +177,11 @@ private:
     int64_t frame_ = 0;
     std::vector<std::pair<std::string, std::unique_ptr<ExrInput>>> open_;
     Box display_;
+
+    // Which file channel feeds which output, with which conversion: built once per run, on the
+    // first frame (again only if another set of outputs is consumed: unit tests).
+    std::unique_ptr<Routing> routing_;
+    Planes planes_;  // the routing's channels' planes this frame (keys fixed with the routing)
 
     // private scratch: planes for channels that feed sums and products
     std::vector<PlaneStorage> scratch_;

@@ -29,6 +29,7 @@
 #include <utility>
 
 #include "ExrInput.h"
+#include "WriterIntegrity.h"
 #include "ZipWriter.h"
 
 namespace kestrel::exr {
@@ -79,191 +80,6 @@ void syncToDisk(const std::string& path, bool folder) {
         throw Error("cannot flush " + path + " to disk: " + std::strerror(err));
 }
 
-uint64_t readLE(const unsigned char* b, int bytes) {
-    uint64_t v = 0;
-    for (int i = bytes - 1; i >= 0; --i) v = (v << 8) | b[i];
-    return v;
-}
-
-/// Whether every chunk of a single-part scan-line file lies wholly inside the file: its offset
-/// table entry is set, and the chunk's header and data end before the file does. A frame cut
-/// short by a crash fails this even when its offset table was written (the writer writes the
-/// table last, but other writers do not).
-bool chunksPresent(std::ifstream& f, Imf::StdIFStream& is, const Imf::Header& h, uint64_t size) {
-    const int lines = linesPerChunk(h.compression());
-    const Imath::Box2i dw = h.dataWindow();
-    if (dw.max.y < dw.min.y) return false;
-    const uint64_t chunks = (uint64_t(dw.max.y - dw.min.y) + uint64_t(lines)) / uint64_t(lines);
-    const uint64_t table = is.tellg();
-    if (table + chunks * 8 > size) return false;
-    std::vector<unsigned char> offsets(chunks * 8);
-    f.seekg(std::streamoff(table));
-    if (!f.read(reinterpret_cast<char*>(offsets.data()), std::streamsize(offsets.size())))
-        return false;
-    for (uint64_t i = 0; i < chunks; ++i) {
-        const uint64_t at = readLE(&offsets[i * 8], 8);
-        unsigned char head[8];
-        if (at < table + chunks * 8 || at + 8 > size) return false;
-        f.seekg(std::streamoff(at));
-        if (!f.read(reinterpret_cast<char*>(head), 8)) return false;
-        const uint64_t bytes = readLE(head + 4, 4);
-        if (bytes == 0 || bytes > 0x7fffffffu || at + 8 + bytes > size) return false;
-    }
-    return true;
-}
-
-/// The header attribute holding the CRC-32 of everything after the header (the offset table
-/// and every chunk) as 8 hex digits. A bit flipped inside a chunk leaves every chunk's size
-/// right, and an uncompressed or stored chunk still decodes: only a checksum shows it.
-constexpr char kCrcAttribute[] = "kestrel.dataCrc32";
-constexpr char kCrcPlaceholder[] = "00000000";
-
-/// A file descriptor closed when it goes out of scope.
-struct Fd {
-    int fd;
-    ~Fd() {
-        if (fd >= 0) ::close(fd);
-    }
-};
-
-/// CRC-32 of the bytes of `fd` from `from` to `to`, read a megabyte at a time.
-uint32_t crcOfRange(int fd, uint64_t from, uint64_t to) {
-    std::vector<unsigned char> buf(std::min<uint64_t>(to - from, 1u << 20));
-    uint32_t crc = 0;
-    for (uint64_t at = from; at < to;) {
-        const ssize_t got =
-            ::pread(fd, buf.data(), size_t(std::min<uint64_t>(buf.size(), to - at)), off_t(at));
-        if (got <= 0) throw Error(std::string("cannot read back: ") + std::strerror(errno));
-        crc = libdeflate_crc32(crc, buf.data(), size_t(got));
-        at += uint64_t(got);
-    }
-    return crc;
-}
-
-std::string hex8(uint32_t v) {
-    char text[9];
-    std::snprintf(text, sizeof text, "%08x", v);
-    return text;
-}
-
-/// Fills the placeholder of kCrcAttribute in the (closed) file `path`, whose header ends at
-/// `headerEnd`, with the CRC of everything after the header. In place, the header's size and
-/// every offset unchanged.
-void stampChecksum(const std::string& path, uint64_t headerEnd) {
-    const Fd file{::open(path.c_str(), O_RDWR | O_CLOEXEC)};
-    const int fd = file.fd;
-    if (fd < 0) throw Error(std::string("cannot open to checksum: ") + std::strerror(errno));
-    const off_t size = ::lseek(fd, 0, SEEK_END);
-    if (size < 0 || uint64_t(size) < headerEnd) throw Error("file shorter than its header");
-    const std::string crc = hex8(crcOfRange(fd, headerEnd, uint64_t(size)));
-    std::string head(headerEnd, '\0');
-    if (::pread(fd, head.data(), head.size(), 0) != ssize_t(head.size()))
-        throw Error(std::string("cannot read back the header: ") + std::strerror(errno));
-    // name, type name, 4-byte little-endian size (8), value: OpenEXR's attribute layout.
-    const std::string key = std::string(kCrcAttribute) + '\0' + "string" + '\0' +
-                            std::string("\x08\0\0\0", 4) + kCrcPlaceholder;
-    const auto at = head.find(key);
-    if (at == std::string::npos) throw Error("no checksum placeholder in the header");
-    const off_t valueAt = off_t(at + key.size() - 8);
-    if (::pwrite(fd, crc.data(), 8, valueAt) != 8)
-        throw Error(std::string("cannot write the checksum: ") + std::strerror(errno));
-}
-
-/// Where the header of a single-part scan-line file ends (its offset table starts).
-uint64_t headerEndOf(const std::string& path) {
-    Imf::Header h;
-    std::ifstream f(path, std::ios::binary);
-    Imf::StdIFStream is(f, path.c_str());
-    unsigned char magic[8];
-    if (!f.read(reinterpret_cast<char*>(magic), 8)) throw Error("cannot read the header");
-    int version = int(readLE(magic + 4, 4));
-    h.readFrom(is, version);
-    return is.tellg();
-}
-
-/// Reads every pixel of `path` through OpenEXR, which throws on a chunk that does not decode:
-/// the check for files without kestrel.dataCrc32 (older or from another writer).
-void decodeAll(const std::string& path) {
-    Imf::InputFile in(path.c_str(), 1);
-    const Imath::Box2i dw = in.header().dataWindow();
-    const size_t W = size_t(dw.max.x - dw.min.x + 1), H = size_t(dw.max.y - dw.min.y + 1);
-    std::vector<float> plane(W * H);
-    for (auto it = in.header().channels().begin(); it != in.header().channels().end(); ++it) {
-        Imf::FrameBuffer fb;  // one channel at a time: one plane of memory
-        fb.insert(it.name(),
-                  Imf::Slice::Make(Imf::FLOAT, plane.data(), dw, sizeof(float), W * sizeof(float)));
-        in.setFrameBuffer(fb);
-        in.readPixels(dw.min.y, dw.max.y);
-    }
-}
-
-/// Why the file cannot be trusted as this run's output (empty: it can). Checked in order of
-/// cost: magic and header; the run's provenance (`provenance` empty: not compared); every
-/// chunk inside the file; the checksum of the offset table and chunks, or, for a file without
-/// one, every chunk decoded. Tiled, multi-part and deep files (not what this writer makes) are
-/// trusted when OpenEXR finds all their pixels.
-std::string exrProblem(const std::string& path, const std::string& provenance) {
-    const std::string broken = "is incomplete, corrupt or unreadable";
-    try {
-        std::ifstream f(path, std::ios::binary | std::ios::ate);
-        if (!f) return broken;
-        const uint64_t size = uint64_t(f.tellg());
-        f.seekg(0);
-        unsigned char magic[8];
-        if (size < 8 || !f.read(reinterpret_cast<char*>(magic), 8)) return broken;
-        const int version = int(readLE(magic + 4, 4));
-        if (int(readLE(magic, 4)) != Imf::MAGIC) return broken;
-        if (Imf::isTiled(version) || Imf::isMultiPart(version) || Imf::isNonImage(version)) {
-            f.close();
-            Imf::InputFile in(path.c_str(), 1);
-            return in.isComplete() ? "" : broken;
-        }
-        Imf::StdIFStream is(f, path.c_str());
-        Imf::Header h;
-        int v = version;
-        h.readFrom(is, v);
-        const uint64_t table = is.tellg();
-        if (!provenance.empty()) {
-            const auto* p = h.findTypedAttribute<Imf::StringAttribute>("kestrel.provenance");
-            if (!p || p->value() != provenance)
-                return "was written by another graph or other parameters (its "
-                       "kestrel.provenance is not this run's)";
-        }
-        if (!chunksPresent(f, is, h, size)) return broken;
-        f.close();
-        const auto* crc = h.findTypedAttribute<Imf::StringAttribute>(kCrcAttribute);
-        if (!crc) {
-            decodeAll(path);  // throws on a chunk that does not decode
-            return "";
-        }
-        const Fd file{::open(path.c_str(), O_RDONLY | O_CLOEXEC)};
-        if (file.fd < 0) return broken;
-        if (hex8(crcOfRange(file.fd, table, size)) != crc->value())
-            return "is corrupt (its data does not match its checksum)";
-        return "";
-    } catch (const std::exception&) {
-        return broken;  // a header or chunk OpenEXR cannot parse: rewrite the frame
-    }
-}
-
-/// A PNG with its signature first and its closing IEND chunk last: what a write cut short,
-/// or one that failed and was never renamed into place, lacks.
-bool isCompletePng(const std::string& path) {
-    static const unsigned char signature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
-    static const unsigned char iend[12] = {0, 0, 0, 0, 'I', 'E', 'N', 'D', 0xae, 0x42, 0x60, 0x82};
-    std::ifstream f(path, std::ios::binary | std::ios::ate);
-    if (!f) return false;
-    const std::streamoff size = f.tellg();
-    unsigned char head[8], tail[12];
-    if (size < std::streamoff(sizeof head + sizeof tail)) return false;
-    f.seekg(0);
-    if (!f.read(reinterpret_cast<char*>(head), sizeof head)) return false;
-    f.seekg(size - std::streamoff(sizeof tail));
-    if (!f.read(reinterpret_cast<char*>(tail), sizeof tail)) return false;
-    return std::memcmp(head, signature, sizeof head) == 0 &&
-           std::memcmp(tail, iend, sizeof tail) == 0;
-}
-
 /// The test-only fault hook: KESTREL_TEST_WRITE_FAULT=STEP:FRAME (STEP one of open, chunk,
 /// fsync, rename) makes the write of FRAME fail at that step as a full disk or a lost mount
 /// would. Read once per writer, so it costs nothing per frame when unset.
@@ -291,62 +107,58 @@ void ensureWritableFolder(const std::string& file) {
 }
 }  // namespace
 
-PassDesc ExrWriter::describe() {
-    PassDesc d("ExrWriter",
-               "Writes each frame to an EXR file (atomically, with provenance) and optionally a "
-               "tone-mapped PNG preview");
-    d.input("color", Format::Any, "image to write (1-4 float channels as R,G,B,A; Int32 as id)");
-    d.optionalInput("alpha", Format::Float,
-                    "written as the A channel of a 3-channel color (the loader's alpha: the "
-                    "input's coverage kept for compositing); unbound or absent: no A");
-    d.paramString("path", "out/frame.####.exr", "output frame pattern (####, @, %04d)");
-    d.paramEnum("pixelType", "auto", {"auto", "half", "float"},
-                "EXR pixel type of float channels (ids are always float); auto: half where the "
-                "source states its colour is half (the scene fact colorPixelType), else float, "
-                "so the output keeps the input's precision");
-    d.paramEnum("compression", "zip", kCompressions, "EXR compression");
-    d.paramInt("zipLevel", 4, 1, 12,
-               "deflate level of zip and zips (libdeflate): 1 fastest, 12 smallest; 4 is "
-               "OpenEXR's default (1080p half RGB, 2 threads: see docs/benchmarks.md)");
-    d.paramString("preview", "", "PNG preview pattern (empty: no preview)");
-    d.paramFloat("exposure", 0.0, -20.0, 20.0, "preview exposure in stops");
-    d.paramEnum("tonemap", "aces", {"aces", "reinhard", "clamp"},
-                "preview tone curve (where $OCIO names no OpenColorIO config: with one, previews "
-                "use its default display and view)");
-    d.paramBool("keepPasses", false,
-                "also write the input frame's other channels (its AOVs; not the colour and alpha "
-                "this output replaces) and its header attributes (camera, frame, render stats), "
-                "for a compositor; read from the loader's file, a block of rows at a time");
-    d.sink = true;
+ExrWriter::Declaration::Declaration()
+    : kestrel::Declaration<Params>(
+          "ExrWriter",
+          "Writes each frame to an EXR file (atomically, with provenance) and optionally a "
+          "tone-mapped PNG preview") {
+    color =
+        input("color", Format::Any, "image to write (1-4 float channels as R,G,B,A; Int32 as id)");
+    alpha = optionalInput("alpha", Format::Float,
+                          "written as the A channel of a 3-channel color (the loader's alpha: the "
+                          "input's coverage kept for compositing); unbound or absent: no A");
+    param("path", &Params::path, "output frame pattern (####, @, %04d)");
+    param("pixelType", &Params::pixelType, {"auto", "half", "float"},
+          "EXR pixel type of float channels (ids are always float); auto: half where the source "
+          "states its colour is half (the scene fact colorPixelType), else float, so the output "
+          "keeps the input's precision");
+    param("compression", &Params::compression, kCompressions, "EXR compression");
+    param("zipLevel", &Params::zipLevel, 1, 12,
+          "deflate level of zip and zips (libdeflate): 1 fastest, 12 smallest; 4 is OpenEXR's "
+          "default (1080p half RGB, 2 threads: see docs/benchmarks.md)");
+    param("preview", &Params::preview, "PNG preview pattern (empty: no preview)");
+    param("exposure", &Params::exposure, -20.0, 20.0, "preview exposure in stops");
+    param("tonemap", &Params::tonemap, {"aces", "reinhard", "clamp"},
+          "preview tone curve (where $OCIO names no OpenColorIO config: with one, previews use "
+          "its default display and view)");
+    param("keepPasses", &Params::keepPasses,
+          "also write the input frame's other channels (its AOVs; not the colour and alpha this "
+          "output replaces) and its header attributes (camera, frame, render stats), for a "
+          "compositor; read from the loader's file, a block of rows at a time");
+    declareSink();
+}
+
+const ExrWriter::Declaration& ExrWriter::declaration() {
+    static const Declaration d;
     return d;
 }
 
-ExrWriter::ExrWriter(const ParamValues& p)
-    : path_(p.getString("path")),
-      pixelType_(p.getString("pixelType")),
-      half_(pixelType_ == "half"),
-      compression_(p.getString("compression")),
-      zipLevel_(int(p.getInt("zipLevel"))),
-      exposure_(p.getFloat("exposure")),
-      keepPasses_(p.getBool("keepPasses")) {
-    if (!p.getString("preview").empty()) {
-        preview_ = std::make_unique<FramePattern>(p.getString("preview"));
+ExrWriter::ExrWriter(const ParamValues& params)
+    : p_(declaration().read(params)), path_(p_.path), half_(p_.pixelType == PixelType::Half) {
+    if (!p_.preview.empty()) {
+        preview_ = std::make_unique<FramePattern>(p_.preview);
         view_ = OcioView::fromEnvironment();
     }
     std::tie(faultStep_, faultFrame_) = faultFromEnvironment();
-    const std::string& tm = p.getString("tonemap");
-    toneMap_ = tm == "reinhard" ? ToneMap::Reinhard
-               : tm == "clamp"  ? ToneMap::Clamp
-                                : ToneMap::Aces;
 }
 
 void ExrWriter::resolve(ResolveContext& rc) {
     if (view_) rc.note("previews through OpenColorIO ($OCIO): " + view_->describe());
-    if (keepPasses_) {
+    if (p_.keepPasses) {
         kept_ = std::make_unique<KeptSource>(KeptSource::fromFacts(rc));
         rc.note("keeps the input's other channels and header attributes (keepPasses)");
     }
-    if (pixelType_ != "auto") return;
+    if (p_.pixelType != PixelType::Auto) return;
     half_ = rc.fact("colorPixelType") == "half";
     // Float loses nothing and needs no word; half is said, since it rounds.
     if (half_) rc.note("writes half pixels, as the source's colour is (pixelType auto)");
@@ -375,9 +187,10 @@ bool ExrWriter::frameWritten(int64_t frame, const std::string& provenance) const
     if (!preview_) return true;
     const std::string png = preview_->expand(frame);
     if (isCompletePng(png)) return true;
-    spdlog::warn("ExrWriter: preview {} is missing or incomplete (a failed write?); frame {} is "
-                 "written again",
-                 png, frame);
+    spdlog::warn(
+        "ExrWriter: preview {} is missing or incomplete (a failed write?); frame {} is "
+        "written again",
+        png, frame);
     return false;
 }
 
@@ -395,24 +208,25 @@ std::string ExrWriter::recordedProvenance(int64_t frame) const {
 namespace {
 /// RGB colour and the alpha input as one RGBA view (no copy); the colour alone otherwise.
 ImageView withAlpha(const ImageView& color, const PassIO& io) {
-    if (color.format != Format::Float3 || !io.hasInput("alpha")) return color;
+    const InputPort& alpha = ExrWriter::declaration().alpha;
+    if (color.format != Format::Float3 || !io.has(alpha)) return color;
     ImageView rgba = color;
     rgba.format = Format::Float4;
-    rgba.planes[3] = io.input("alpha").planes[0];
+    rgba.planes[3] = io.input(alpha).planes[0];
     return rgba;
 }
 }  // namespace
 
 void ExrWriter::execute(FrameContext& ctx, PassIO& io) {
     if (!ctx.writeOutputs) return;
-    const ImageView& img = io.input("color");
+    const ImageView& img = io.input(declaration().color);
     std::string file = path_.expand(ctx.frameNumber);
     writeExr(withAlpha(img, io), file, ctx, {io.idlePlanes(), ctx.extent.pixels() * sizeof(float)});
     if (preview_) {
         std::string png = preview_->expand(ctx.frameNumber);
         std::string tmp = tempName(png);
         try {
-            writePngPreview(img, tmp, exposure_, toneMap_, view_.get());
+            writePngPreview(img, tmp, p_.exposure, p_.tonemap, view_.get());
             syncToDisk(tmp, false);
             fs::rename(tmp, png);
         } catch (const std::exception& e) {
@@ -423,23 +237,16 @@ void ExrWriter::execute(FrameContext& ctx, PassIO& io) {
     }
 }
 
-void ExrWriter::writeExr(const ImageView& img, const std::string& file, const FrameContext& ctx,
-                         const Workspace& lent) {
-    const int W = img.width(), H = img.height();
-    const size_t N = img.pixels();
-    const bool ids = img.format == Format::Int32;
-    const int C = ids ? 1 : img.channels();
-    if (C < 1 || C > 4 || W <= 0 || H <= 0)
-        throw Error("cannot write " + file + ": unsupported image (" + std::to_string(C) +
-                    " channels, " + std::to_string(W) + "x" + std::to_string(H) + ")");
-    const bool asHalf = half_ && !ids;  // ids stay exact as float (half holds integers to 2048)
-
-    // Sanitise while converting: NaN -> 0; beyond the half range (or +-Inf) -> the largest finite
-    // value, so a file never holds Inf or NaN.
+/// Image channel c's values [b, e), converted into dst (half or float), sanitised: NaN -> 0;
+/// beyond the half range (or +-Inf) -> the largest finite value, so a file never holds Inf or
+/// NaN. Counts what it changed.
+struct ExrWriter::Converter {
+    const ImageView& img;
+    bool ids, asHalf;
+    float limit;
     std::atomic<size_t> nans{0}, clamped{0};
-    const float limit = asHalf ? kHalfMax : std::numeric_limits<float>::max();
-    // Values [b, e) of image channel c, converted into dst (half or float).
-    auto convert = [&](int c, size_t b, size_t e, void* dst) {
+
+    void operator()(int c, size_t b, size_t e, void* dst) {
         size_t localNaN = 0, localClamp = 0;
         const float* src = img.planes[size_t(c)];
         for (size_t i = b; i < e; ++i) {
@@ -463,15 +270,20 @@ void ExrWriter::writeExr(const ImageView& img, const std::string& file, const Fr
         }
         if (localNaN) nans += localNaN;
         if (localClamp) clamped += localClamp;
-    };
-    const bool zip = compression_ == "zip" || compression_ == "zips";
+    }
+};
 
-    static const char* rgba[] = {"R", "G", "B", "A"};
+namespace {
+const char* const kRgba[] = {"R", "G", "B", "A"};
+
+/// The output's header: C channels (R, G, B, A or id), Rec.709 chromaticities, the run's
+/// provenance and the checksum's placeholder.
+Imf::Header exrHeader(int W, int H, int C, bool ids, bool asHalf, const std::string& compression,
+                      const FrameContext& ctx) {
     Imf::Header header(W, H);
-    header.compression() = compressionOf(compression_);
+    header.compression() = compressionOf(compression);
     const Imf::PixelType type = asHalf ? Imf::HALF : Imf::FLOAT;
-    const size_t elem = asHalf ? sizeof(half) : sizeof(float);
-    for (int c = 0; c < C; ++c) header.channels().insert(ids ? "id" : rgba[c], Imf::Channel(type));
+    for (int c = 0; c < C; ++c) header.channels().insert(ids ? "id" : kRgba[c], Imf::Channel(type));
     // Rec.709 primaries and D65 white (Blender's and most renderers' scene-linear): without
     // the attribute a compositor or OCIO-aware viewer has to guess the colour space.
     if (!ids) Imf::addChromaticities(header, kRec709);
@@ -480,11 +292,27 @@ void ExrWriter::writeExr(const ImageView& img, const std::string& file, const Fr
         header.insert("kestrel.provenance", Imf::StringAttribute(ctx.run->provenance));
     }
     header.insert(kCrcAttribute, Imf::StringAttribute(kCrcPlaceholder));  // filled once written
+    return header;
+}
+}  // namespace
+
+void ExrWriter::writeExr(const ImageView& img, const std::string& file, const FrameContext& ctx,
+                         const Workspace& lent) {
+    const int W = img.width(), H = img.height();
+    const bool ids = img.format == Format::Int32;
+    const int C = ids ? 1 : img.channels();
+    if (C < 1 || C > 4 || W <= 0 || H <= 0)
+        throw Error("cannot write " + file + ": unsupported image (" + std::to_string(C) +
+                    " channels, " + std::to_string(W) + "x" + std::to_string(H) + ")");
+    const bool asHalf = half_ && !ids;  // ids stay exact as float (half holds integers to 2048)
+    Converter convert{img, ids, asHalf, asHalf ? kHalfMax : std::numeric_limits<float>::max()};
+    const bool zip = p_.compression == "zip" || p_.compression == "zips";
+    const Imf::Header header = exrHeader(W, H, C, ids, asHalf, p_.compression, ctx);
     // The image channel of each of the header's (alphabetically ordered) channels.
     std::vector<int> channelOf;
     for (auto it = header.channels().begin(); it != header.channels().end(); ++it)
         for (int c = 0; c < C; ++c)
-            if (std::strcmp(it.name(), ids ? "id" : rgba[c]) == 0) channelOf.push_back(c);
+            if (std::strcmp(it.name(), ids ? "id" : kRgba[c]) == 0) channelOf.push_back(c);
 
     int threads = ctx.parallel ? ctx.parallel->threadCount() : 1;
     std::string tmp = tempName(file);
@@ -493,7 +321,8 @@ void ExrWriter::writeExr(const ImageView& img, const std::string& file, const Fr
         injectFault("open", frame);
         if (kept_) {
             const OwnRow own = [&](const std::string& name, int y, void* dst) {
-                const auto c = std::find(std::begin(rgba), std::end(rgba), name) - std::begin(rgba);
+                const auto c =
+                    std::find(std::begin(kRgba), std::end(kRgba), name) - std::begin(kRgba);
                 convert(ids ? 0 : int(c), size_t(y) * size_t(W), size_t(y + 1) * size_t(W), dst);
             };
             writeKeeping(header, tmp, frame, own, threads);
@@ -507,28 +336,9 @@ void ExrWriter::writeExr(const ImageView& img, const std::string& file, const Fr
                 hook = [this, frame](size_t chunk) {
                     if (chunk == 1) injectFault("chunk", frame);  // after one chunk is on disk
                 };
-            writeZipScanlines(tmp, header, rows, threads, zipLevel_, hook, lent);
+            writeZipScanlines(tmp, header, rows, threads, p_.zipLevel, hook, lent);
         } else {
-            if (asHalf)
-                halfScratch_.resize(N * size_t(C));
-            else
-                floatScratch_.resize(N * size_t(C));
-            char* data = asHalf ? reinterpret_cast<char*>(halfScratch_.data())
-                                : reinterpret_cast<char*>(floatScratch_.data());
-            ctx.parallelRows(H, [&](int y0, int y1) {
-                for (int c = 0; c < C; ++c) {
-                    const size_t b = size_t(y0) * size_t(W), e = size_t(y1) * size_t(W);
-                    convert(c, b, e, data + (size_t(c) * N + b) * elem);
-                }
-            });
-            Imf::FrameBuffer fb;
-            for (int c = 0; c < C; ++c)
-                fb.insert(ids ? "id" : rgba[c],
-                          Imf::Slice(type, data + size_t(c) * N * elem, elem, elem * size_t(W)));
-            if (Imf::globalThreadCount() < threads) Imf::setGlobalThreadCount(threads);
-            Imf::OutputFile out(tmp.c_str(), header, Imf::globalThreadCount());
-            out.setFrameBuffer(fb);
-            out.writePixels(H);
+            writeThroughOpenExr(header, tmp, convert, ctx);
         }  // closed before it is checksummed, flushed and renamed
         stampChecksum(tmp, headerEndOf(tmp));
         injectFault("fsync", frame);
@@ -541,7 +351,39 @@ void ExrWriter::writeExr(const ImageView& img, const std::string& file, const Fr
         fs::remove(tmp, ec);
         throw Error("cannot write " + file + ": " + e.what());
     }
-    warnSanitised(ctx.frameNumber, nans, clamped, asHalf, limit);
+    warnSanitised(ctx.frameNumber, convert.nans, convert.clamped, asHalf, convert.limit);
+}
+
+void ExrWriter::writeThroughOpenExr(const Imf::Header& header, const std::string& tmp,
+                                    Converter& convert, const FrameContext& ctx) {
+    const ImageView& img = convert.img;
+    const int W = img.width(), H = img.height();
+    const size_t N = img.pixels();
+    const int C = convert.ids ? 1 : img.channels();
+    const bool asHalf = convert.asHalf;
+    const Imf::PixelType type = asHalf ? Imf::HALF : Imf::FLOAT;
+    const size_t elem = asHalf ? sizeof(half) : sizeof(float);
+    if (asHalf)
+        halfScratch_.resize(N * size_t(C));
+    else
+        floatScratch_.resize(N * size_t(C));
+    char* data = asHalf ? reinterpret_cast<char*>(halfScratch_.data())
+                        : reinterpret_cast<char*>(floatScratch_.data());
+    ctx.parallelRows(H, [&](int y0, int y1) {
+        for (int c = 0; c < C; ++c) {
+            const size_t b = size_t(y0) * size_t(W), e = size_t(y1) * size_t(W);
+            convert(c, b, e, data + (size_t(c) * N + b) * elem);
+        }
+    });
+    Imf::FrameBuffer fb;
+    for (int c = 0; c < C; ++c)
+        fb.insert(convert.ids ? "id" : kRgba[c],
+                  Imf::Slice(type, data + size_t(c) * N * elem, elem, elem * size_t(W)));
+    const int threads = ctx.parallel ? ctx.parallel->threadCount() : 1;
+    if (Imf::globalThreadCount() < threads) Imf::setGlobalThreadCount(threads);
+    Imf::OutputFile out(tmp.c_str(), header, Imf::globalThreadCount());
+    out.setFrameBuffer(fb);
+    out.writePixels(H);
 }
 
 void ExrWriter::writeKeeping(const Imf::Header& header, const std::string& tmp, int64_t frame,

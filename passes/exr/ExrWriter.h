@@ -11,6 +11,7 @@
 #include "KeepPasses.h"
 #include "PngPreview.h"
 #include "Workspace.h"
+#include "kestrel/Declare.h"
 #include "kestrel/FramePattern.h"
 #include "kestrel/Kestrel.h"
 
@@ -18,7 +19,25 @@ namespace kestrel::exr {
 
 class ExrWriter : public Pass {
 public:
-    static PassDesc describe();
+    enum class PixelType { Auto, Half, Float };
+    struct Params {
+        std::string path = "out/frame.####.exr";
+        PixelType pixelType = PixelType::Auto;  // auto: the source's (resolved at compile time)
+        std::string compression = "zip";        // the name OpenEXR's compression is chosen by
+        int zipLevel = 4;
+        std::string preview;
+        float exposure = 0.f;
+        ToneMap tonemap = ToneMap::Aces;
+        bool keepPasses = false;
+    };
+    /// Ports and parameters, declared once (kestrel/Declare.h).
+    struct Declaration : kestrel::Declaration<Params> {
+        Declaration();
+        InputPort color, alpha;
+    };
+    static const Declaration& declaration();
+
+    static PassDesc describe() { return declaration().desc(); }
     explicit ExrWriter(const ParamValues& params);
 
     void resolve(ResolveContext& rc) override;
@@ -31,6 +50,10 @@ private:
     /// `lent`: the writer's idle planes (PassIO::idlePlanes), for the ZIP encoder's chunk buffers.
     void writeExr(const ImageView& img, const std::string& path, const FrameContext& ctx,
                   const Workspace& lent);
+    struct Converter;  // the frame's values as written (sanitised), ExrWriter.cpp
+    /// Other compressions than ZIP: the frame converted whole, written by OpenEXR.
+    void writeThroughOpenExr(const Imf::Header& header, const std::string& tmp, Converter& convert,
+                             const FrameContext& ctx);
     /// keepPasses: the output's own channels and the input frame's others, through OpenEXR.
     void writeKeeping(const Imf::Header& header, const std::string& tmp, int64_t frame,
                       const OwnRow& own, int threads) const;
@@ -39,16 +62,11 @@ private:
     /// Throws when KESTREL_TEST_WRITE_FAULT names this step and frame (tests only).
     void injectFault(const char* step, int64_t frame) const;
 
+    Params p_;
     FramePattern path_;
     std::unique_ptr<FramePattern> preview_;
-    std::unique_ptr<OcioView> view_;  ///< previews through $OCIO's default view, if set
-    std::string pixelType_;  // half, float or auto (the source's, resolved at compile time)
-    bool half_ = false;
-    std::string compression_;
-    int zipLevel_;
-    float exposure_;
-    ToneMap toneMap_;
-    bool keepPasses_ = false;
+    std::unique_ptr<OcioView> view_;    ///< previews through $OCIO's default view, if set
+    bool half_ = false;                 // pixelType half, or auto where the source's colour is half
     std::unique_ptr<KeptSource> kept_;  ///< keepPasses: the loader's file per frame (resolve)
     std::string faultStep_;             // empty unless a test injects a write fault
     int64_t faultFrame_ = 0;

@@ -134,6 +134,23 @@ protected:
         for (const InputPort* p : inputs) names.push_back(p->name);
         desc_.fuseOn(std::move(names), outputs);
     }
+    /// A 64-bit integer parameter (sizes in pixels or bytes, beyond int's range).
+    void param(std::string name, int64_t Params::*member, int64_t min, int64_t max,
+               std::string description) {
+        desc_.paramInt(name, Params{}.*member, min, max, std::move(description));
+        readers_.push_back(
+            [member, name](Params& p, const ParamValues& v) { p.*member = v.getInt(name); });
+    }
+    /// An enum parameter read as its choice's name, for a pass that passes the name on (a
+    /// compression named to a library, a value quoted in messages).
+    void param(std::string name, std::string Params::*member, std::vector<std::string> choices,
+               std::string description) {
+        desc_.paramEnum(name, Params{}.*member, std::move(choices), std::move(description));
+        readers_.push_back(
+            [member, name](Params& p, const ParamValues& v) { p.*member = v.getString(name); });
+    }
+    /// A sink (PassDesc::sink): writes outside the graph, so it is always live.
+    void declareSink() { desc_.sink = true; }
 
 private:
     PassDesc desc_;

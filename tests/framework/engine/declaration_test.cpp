@@ -184,4 +184,36 @@ TEST(Declaration, HandlesReachTheirOwnPortWhereNamesRepeat) {
                     10.f);
 }
 
+namespace {
+struct WideParams {
+    int64_t pixels = int64_t(1) << 33;  // beyond int
+    std::string codec = "zip";
+};
+struct WideDeclaration : Declaration<WideParams> {
+    WideDeclaration() : Declaration<WideParams>("Wide", "int64 and enum-as-name parameters") {
+        param("pixels", &WideParams::pixels, 1, int64_t(1) << 40, "a size");
+        param("codec", &WideParams::codec, {"none", "zip", "piz"}, "a name passed on");
+        declareSink();
+    }
+};
+}  // namespace
+
+TEST(Declaration, Int64AndEnumNameParameters) {
+    const WideDeclaration d;
+    const ParamDesc* pixels = d.desc().findParam("pixels");
+    const ParamDesc* codec = d.desc().findParam("codec");
+    ASSERT_TRUE(pixels && codec);
+    EXPECT_TRUE(d.desc().sink);
+    EXPECT_FALSE(TypedPass::describe().sink);
+    EXPECT_EQ(std::get<int64_t>(pixels->defaultValue), int64_t(1) << 33);
+    EXPECT_EQ(pixels->max, double(int64_t(1) << 40));
+    EXPECT_EQ(codec->type, ParamType::Enum);
+    EXPECT_EQ(std::get<std::string>(codec->defaultValue), "zip");
+    EXPECT_EQ(codec->choices, (std::vector<std::string>{"none", "zip", "piz"}));
+    const WideParams p =
+        d.read(ParamValues({{"pixels", int64_t(5) << 32}, {"codec", std::string("piz")}}));
+    EXPECT_EQ(p.pixels, int64_t(5) << 32);
+    EXPECT_EQ(p.codec, "piz");
+}
+
 }  // namespace kestrel::enginetest
