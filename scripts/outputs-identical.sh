@@ -8,7 +8,9 @@
 #
 # A prefix is a folder with bin/kestrel and lib/kestrel/plugins (a build tree, or a copy of its
 # bin/ and lib/); NEW defaults to this checkout's build/ and graphs/. Keep an old build with
-# `cp -r build/bin build/lib /somewhere/` before changing code.
+# `cp -r build/bin build/lib /somewhere/` before changing code: each side runs with
+# LD_LIBRARY_PATH at its own lib/ (a build tree's binary has its tree's lib/ as RUNPATH, so a copy
+# would otherwise load the tree's current library and plugins).
 #   FRAMES      frames of each sequence (default 1-12)
 #   GRAPHS      shipped graph names to run (default: every graphs/*.json)
 #   SCENES      zoo scene names (default: every zoo scene)
@@ -51,10 +53,10 @@ for entry in "${inputs[@]}"; do
   for g in $graphs; do
     fr=()
     [[ -n $range ]] && fr=(--frames "$range")
-    "$old/bin/kestrel" run "$oldgraphs/$g.json" --input "$input" \
+    LD_LIBRARY_PATH="$old/lib" "$old/bin/kestrel" run "$oldgraphs/$g.json" --input "$input" \
       --output "$work/old/$name/$g/f_####.exr" "${fr[@]}" >/dev/null 2>"$work/err-old"
     a=$?
-    "$new/bin/kestrel" run "$newgraphs/$g.json" --input "$input" \
+    LD_LIBRARY_PATH="$new/lib" "$new/bin/kestrel" run "$newgraphs/$g.json" --input "$input" \
       --output "$work/new/$name/$g/f_####.exr" "${fr[@]}" >/dev/null 2>"$work/err-new"
     b=$?
     if ((a != 0 && b != 0)); then
