@@ -6,13 +6,13 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <vector>
 
 namespace kestrel::firefly {
 
-void Excess::reset(int width, int height) {
-    w = width;
-    h = height;
-    rgb.assign(size_t(4) * size_t(w) * size_t(h), 0.f);
+void Excess::reset(int height) {
+    rows.resize(size_t(std::max(height, 0)));
+    for (auto& row : rows) row.clear();
 }
 
 namespace {
@@ -45,40 +45,35 @@ struct RowSources {
     std::vector<uint64_t> masks;
 };
 
-/// Luminance of `color` and of the excess summed along each row over [x - r, x + r]: a running
-/// sum per row (in double: the subtraction of what leaves the window does not drift).
-void rowSums(const FrameContext& ctx, const Excess& e, const ImageView& color, int r,
-             std::vector<float>& sumE, std::vector<float>& sumK) {
-    const int w = e.w;
-    ctx.parallelRows(e.h, [&](int y0, int y1) {
-        std::vector<double> le(static_cast<size_t>(w)), lk(static_cast<size_t>(w));
-        for (int y = y0; y < y1; ++y) {
-            const size_t o = size_t(y) * size_t(w);
-            for (int x = 0; x < w; ++x) {
-                le[x] = luminance(e.plane(0)[o + x], e.plane(1)[o + x], e.plane(2)[o + x]);
-                lk[x] = std::max(0.f, luminance(px::sanitize(color.row(0, y)[x]),
-                                                px::sanitize(color.row(1, y)[x]),
-                                                px::sanitize(color.row(2, y)[x])));
-            }
-            double a = 0.0, b = 0.0;
-            for (int x = 0; x < std::min(r, w); ++x) {
-                a += le[x];
-                b += lk[x];
-            }
-            for (int x = 0; x < w; ++x) {
-                if (x + r < w) {
-                    a += le[x + r];
-                    b += lk[x + r];
-                }
-                if (x - r - 1 >= 0) {
-                    a -= le[x - r - 1];
-                    b -= lk[x - r - 1];
-                }
-                sumE[o + x] = float(std::max(a, 0.0));
-                sumK[o + x] = float(std::max(b, 0.0));
-            }
+constexpr double kMostTerm = 1e8;  // each luminance term of the window sums is held to this
+
+/// The excess's luminance summed over (x, y)'s window: the clamped samples of its rows within
+/// [x - r, x + r], found by binary search (each row is in x order).
+double excessInWindow(const Excess& e, int x, int y, int r, int h) {
+    double sum = 0.0;
+    for (int j = std::max(y - r, 0); j <= std::min(y + r, h - 1); ++j) {
+        const auto& row = e.rows[size_t(j)];
+        auto it = std::lower_bound(row.begin(), row.end(), x - r,
+                                   [](const Clamped& c, int v) { return c.x < v; });
+        for (; it != row.end() && it->x <= x + r; ++it)
+            sum += std::min(kMostTerm, double(luminance(it->e0, it->e1, it->e2)));
+    }
+    return sum;
+}
+
+/// The accumulated colour's luminance summed over (x, y)'s window.
+double lightInWindow(const ImageView& color, int x, int y, int r) {
+    const int w = color.width(), h = color.height();
+    double sum = 0.0;
+    for (int j = std::max(y - r, 0); j <= std::min(y + r, h - 1); ++j) {
+        const float *c0 = color.row(0, j), *c1 = color.row(1, j), *c2 = color.row(2, j);
+        for (int i = std::max(x - r, 0); i <= std::min(x + r, w - 1); ++i) {
+            const float l =
+                luminance(px::sanitize(c0[i]), px::sanitize(c1[i]), px::sanitize(c2[i]));
+            sum += std::clamp(double(l), 0.0, kMostTerm);
         }
-    });
+    }
+    return sum;
 }
 
 /// Marks the pixels of (x, y)'s window that lie on its surface: the same object, normals within
@@ -116,44 +111,37 @@ int markSurface(const Gbuffer& g, int x, int y, int r, uint64_t* mask) {
 
 void spreadExcess(const FrameContext& ctx, const Excess& excess, const Surface& surface,
                   SpreadSettings settings, const ImageView& color) {
-    const int w = excess.w, h = excess.h, r = std::min(settings.radius, kMaxRadius);
-    if (r <= 0 || w <= 0 || h <= 0 || !(settings.fullShare > 0.f)) return;
+    const int w = color.width(), h = color.height(), r = std::min(settings.radius, kMaxRadius);
+    if (r <= 0 || w <= 0 || h <= 0 || !(settings.fullShare > 0.f) ||
+        excess.rows.size() != size_t(h))
+        return;
     const Gbuffer g{w, h, *surface.depth, *surface.normal,
                     surface.objectId ? surface.objectId->ints() : nullptr};
-    const size_t n = size_t(w) * size_t(h);
-    std::vector<float> sumE(n), sumK(n);
-    rowSums(ctx, excess, color, r, sumE, sumK);
 
     // The clamped pixels of each row, with the share each pixel of their surface receives.
     std::vector<RowSources> sources(static_cast<size_t>(h));
     const size_t window = size_t(2 * r + 1);
     ctx.parallelRows(h, [&](int y0, int y1) {
         for (int y = y0; y < y1; ++y)
-            for (int x = 0; x < w; ++x) {
-                const size_t i = size_t(y) * size_t(w) + size_t(x);
-                const float e0 = excess.plane(0)[i], e1 = excess.plane(1)[i],
-                            e2 = excess.plane(2)[i];
-                if (e0 == 0.f && e1 == 0.f && e2 == 0.f) continue;
-                float se = 0.f, sk = 0.f;
-                for (int j = std::max(y - r, 0); j <= std::min(y + r, h - 1); ++j) {
-                    se += sumE[size_t(j) * size_t(w) + size_t(x)];
-                    sk += sumK[size_t(j) * size_t(w) + size_t(x)];
-                }
-                const float f = std::min(1.f, px::safeDiv(se, se + sk) / settings.fullShare);
-                if (!(f > 0.f)) continue;
+            for (const Clamped& c : excess.rows[size_t(y)]) {
+                const double se = excessInWindow(excess, c.x, y, r, h);
+                const double sk = lightInWindow(color, c.x, y, r);
+                const float share = se + sk > 0.0 ? float(se / (se + sk)) : 0.f;
+                const float f = std::min(1.f, share / settings.fullShare);
+                const float most = settings.maxBounds * c.bound;
+                if (!(f > 0.f) || !(most > 0.f)) continue;
                 RowSources& row = sources[size_t(y)];
                 row.masks.resize(row.masks.size() + window);
                 const int count =
-                    markSurface(g, x, y, r, row.masks.data() + row.masks.size() - window);
+                    markSurface(g, c.x, y, r, row.masks.data() + row.masks.size() - window);
                 if (count == 0) {
                     row.masks.resize(row.masks.size() - window);
                     continue;
                 }
                 // Each pixel's share, held to maxBounds of the bound (its luminance is 1).
-                const float each = f / float(count) * luminance(e0, e1, e2);
-                const float most = settings.maxBounds * excess.plane(3)[i];
+                const float each = f / float(count) * luminance(c.e0, c.e1, c.e2);
                 const float k = f / float(count) * (each > most ? px::safeDiv(most, each) : 1.f);
-                row.list.push_back({x, e0 * k, e1 * k, e2 * k});
+                row.list.push_back({c.x, c.e0 * k, c.e1 * k, c.e2 * k});
             }
     });
 

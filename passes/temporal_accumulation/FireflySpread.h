@@ -35,22 +35,27 @@ struct SpreadSettings {
     float fullShare;  ///< the clamped share of a window's light at which all of it is kept
 };
 
-/// Clamped excess of one frame: planes of w x h floats: 0-2 the colour the clamp took off each
-/// sample, times the weight the sample enters the accumulation with; 3 the clamp's bound
-/// (luminance) times the same weight; 0 where nothing was taken.
+/// What the clamp took off one sample: its colour times the weight the sample enters the
+/// accumulation with, and the clamp's bound (luminance) times the same weight.
+struct Clamped {
+    int x;
+    float e0, e1, e2, bound;
+};
+
+/// The clamped samples of one frame, row by row in x order: memory for the samples the clamp
+/// took something off, not planes for the frame (a full-frame excess cost 25 B/px at 1080p).
 struct Excess {
-    int w = 0, h = 0;
-    std::vector<float> rgb;  ///< 4 planes
-    void reset(int width, int height);
-    float* plane(int c) { return rgb.data() + size_t(c) * size_t(w) * size_t(h); }
-    const float* plane(int c) const { return rgb.data() + size_t(c) * size_t(w) * size_t(h); }
+    std::vector<std::vector<Clamped>> rows;
+    /// Empties every row for a frame of `height` rows, keeping their capacity.
+    void reset(int height);
 };
 
 /// Adds to `color` (the accumulated colour, 3 planes) the kept part of `excess`: at each clamped
 /// pixel q, the share f = min(1, E / (E + K) / fullShare), E and K the luminance of the excess and
-/// of `color` summed over q's window, spread evenly over the window's pixels on q's surface, at
-/// most maxBounds times q's clamp bound on each (a sample of 1e10 is no light to keep).
-/// Deterministic and independent of the thread count (each output row sums in a fixed order).
+/// of `color` summed over q's window (each term held to 1e8: a share beyond is 1 either way),
+/// spread evenly over the window's pixels on q's surface, at most maxBounds times q's clamp bound
+/// on each (a sample of 1e10 is no light to keep). Deterministic and independent of the thread
+/// count (each output row sums in a fixed order).
 void spreadExcess(const FrameContext& ctx, const Excess& excess, const Surface& surface,
                   SpreadSettings settings, const ImageView& color);
 

@@ -232,11 +232,10 @@ Row rowAt(const Views& v, int y, int h, Lum lum, const float* zeros, float* cons
     r.om1 = v.outM ? v.outM->row(1, y) : sink[1];
     r.oh = v.outH ? v.outH->row(0, y) : sink[2];
     r.ov = v.outV ? v.outV->row(0, y) : sink[3];
-    const size_t at = size_t(y) * size_t(v.color.width());
-    r.e0 = v.excess ? v.excess->plane(0) + at : sink[4];
-    r.e1 = v.excess ? v.excess->plane(1) + at : sink[5];
-    r.e2 = v.excess ? v.excess->plane(2) + at : sink[6];
-    r.eb = v.excess ? v.excess->plane(3) + at : sink[7];
+    r.e0 = sink[4];  // the clamp's excess: gathered into Views::excess after the row (keep)
+    r.e1 = sink[5];
+    r.e2 = sink[6];
+    r.eb = sink[7];
     return r;
 }
 
@@ -250,6 +249,14 @@ void runRow(int w, int h, int y, const Params& prm, const Row& r) {
     borderPixel<C, M>(w, 0, prm, r);
     interiorRow<C, M>(w, prm, r);
     borderPixel<C, M>(w, w - 1, prm, r);
+}
+
+/// The samples of a row the clamp took something off, in x order (FireflySpread.h): those with
+/// a positive bound (a bound of 0 lets nothing be spread).
+void keep(const Row& r, int w, std::vector<firefly::Clamped>& out) {
+    for (int x = 0; x < w; ++x)
+        if (r.eb[x] > 0.f && (r.e0[x] != 0.f || r.e1[x] != 0.f || r.e2[x] != 0.f))
+            out.push_back({x, r.e0[x], r.e1[x], r.e2[x], r.eb[x]});
 }
 
 /// The pass for this target (its parameters as arguments).
@@ -284,7 +291,9 @@ void executeOnTarget(FrameContext& ctx, PassIO& io, const TemporalAccumulationPa
         convert(ya);
         for (int y = ya; y < yb; ++y) {
             if (y + 1 < h) convert(y + 1);
-            run(w, h, y, prm, rowAt(v, y, h, lumRow, zeros, sink));
+            const Row r = rowAt(v, y, h, lumRow, zeros, sink);
+            run(w, h, y, prm, r);
+            if (v.excess) keep(r, w, v.excess->rows[size_t(y)]);
         }
     });
 }
@@ -356,7 +365,7 @@ void TemporalAccumulationPass::execute(FrameContext& ctx, PassIO& io) {
     const Declaration& d = declaration();
     const bool spread = p_.fireflySpread > 0 && p_.fireflySigma > 0.f && io.has(d.depth) &&
                         io.has(d.normal) && io.has(d.prevHistoryLength);
-    if (spread) excess_.reset(ctx.extent.width, ctx.extent.height);
+    if (spread) excess_.reset(ctx.extent.height);
     HWY_DYNAMIC_DISPATCH(executeOnTarget)(ctx, io, p_, spread ? &excess_ : nullptr);
     if (!spread) return;
     const firefly::Surface surface{&io.input(d.depth), &io.input(d.normal),
@@ -365,4 +374,5 @@ void TemporalAccumulationPass::execute(FrameContext& ctx, PassIO& io) {
                                            p_.fireflyFullShare};
     firefly::spreadExcess(ctx, excess_, surface, settings, io.output(d.colorOut));
 }
+
 #endif  // HWY_ONCE

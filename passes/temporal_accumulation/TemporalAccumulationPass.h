@@ -32,5 +32,5 @@ public:
 
 private:
     Params p_;
-    kestrel::firefly::Excess excess_;  ///< this frame's clamped excess (only when spreading)
+    kestrel::firefly::Excess excess_;  ///< this frame's clamped samples (only when spreading)
 };
