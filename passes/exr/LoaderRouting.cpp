@@ -118,8 +118,10 @@ Routing buildRouting(const Plan& plan, const std::vector<bool>& consumed) {
             continue;
         }
         const bool late = readByDerived.count(ref) > 0;
+        // A copy for the lambda: clang before 16 does not capture structured bindings (C++20).
+        const ChannelRef key = ref;
         const Routing::Slot own = std::find_if(rt.dest.begin(), rt.dest.end(), [&](const auto& d) {
-                                      return d.first == ref;
+                                      return d.first == key;
                                   })->second;
         rt.deferred.push_back({ref, own, rt.fills[ref], lowest, true, late});
         for (const auto& [plane, r] : rt.copies)
