@@ -228,7 +228,8 @@ ClampedAccumulationPass::Declaration::Declaration()
         optionalInput("historyLength", Format::Float,
                       "reprojection validity: 0 where the projection failed (alpha = 1 there)");
     colorOut = output("color", Format::Float3, "accumulated colour");
-    param("alpha", &Params::alpha, 0.0, 1.0, "weight of the current colour where history is valid");
+    paramDecimal("alpha", &Params::alpha, 0.0, 1.0,
+                 "weight of the current colour where history is valid");
     param("k", &Params::k, 0.0, 1000.0, "half-width of the colour box in standard deviations");
     param("radius", &Params::radius, 0, 32, "window radius of the mean/sigma statistics (3: 7x7)");
     param("holdCurrent", &Params::holdCurrent,
@@ -251,7 +252,7 @@ void ClampedAccumulationPass::resolve(ResolveContext& rc) {
 
 void ClampedAccumulationPass::execute(FrameContext& ctx, PassIO& io) {
     HWY_DYNAMIC_DISPATCH(executeOnTarget)
-    (ctx, io, float(p_.alpha), p_.k, p_.radius, p_.holdCurrent);
+    (ctx, io, p_.alpha, p_.k, p_.radius, p_.holdCurrent);
 }
 
 }  // namespace kestrel::passes

@@ -12,9 +12,7 @@ namespace kestrel::passes {
 class ClampedAccumulationPass final : public Pass {
 public:
     struct Params {
-        // double only so that the declared default is 0.2 (a float member declares
-        // double(0.2f)); the pass blends with float(alpha).
-        double alpha = 0.2;
+        float alpha = 0.2f;
         float k = 1.f;
         int radius = 3;
         bool holdCurrent = false;

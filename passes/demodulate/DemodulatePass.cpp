@@ -101,8 +101,8 @@ DemodulatePass::Declaration::Declaration()
         "light is then 0), so what the filters spread into a black pixel (an emitter's) from the "
         "lit surface around it comes back scaled by the floor. Absent without an albedo",
         &albedo);
-    param("albedoFloor", &Params::albedoFloor, 0.0, 1.0,
-          "lower bound of the albedo divisor (dark albedo would amplify noise)");
+    paramDecimal("albedoFloor", &Params::albedoFloor, 0.0, 1.0,
+                 "lower bound of the albedo divisor (dark albedo would amplify noise)");
 }
 
 const DemodulatePass::Declaration& DemodulatePass::declaration() {

@@ -137,8 +137,8 @@ HistoryFixPass::Declaration::Declaration()
     param("normalPower", &Params::normalPower, 0.0, 1e4,
           "normal weight exponent: max(0, n_p . n_q)^p (looser than A-Trous' 128: a "
           "curved surface's neighbours must count)");
-    param("depthSlack", &Params::depthSlack, 0.0, 1e6,
-          "relative depth tolerance per pixel of distance, beyond the depth slope");
+    paramDecimal("depthSlack", &Params::depthSlack, 0.0, 1e6,
+                 "relative depth tolerance per pixel of distance, beyond the depth slope");
 }
 
 const HistoryFixPass::Declaration& HistoryFixPass::declaration() {
@@ -148,7 +148,7 @@ const HistoryFixPass::Declaration& HistoryFixPass::declaration() {
 
 namespace {
 HistoryFixPass::Settings settingsOf(const HistoryFixPass::Params& p) {
-    return {p.frames, p.stride, p.normalPower, float(p.depthSlack)};
+    return {p.frames, p.stride, p.normalPower, p.depthSlack};
 }
 }  // namespace
 

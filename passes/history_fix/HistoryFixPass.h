@@ -17,9 +17,7 @@ public:
         float frames = 4.f;
         int stride = 1;
         float normalPower = 8.f;
-        // double only so that the declared default is 0.01 (a float member declares
-        // double(0.01f)); the pass works with float(depthSlack) (Settings).
-        double depthSlack = 0.01;
+        float depthSlack = 0.01f;
     };
     /// Ports and parameters, declared once (kestrel/Declare.h).
     struct Declaration : kestrel::Declaration<Params> {

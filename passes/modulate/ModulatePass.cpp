@@ -85,8 +85,8 @@ ModulatePass::Declaration::Declaration()
     emission = optionalInput("emission", Format::Float3, "emitted radiance to add back");
     base = optionalInput("base", Format::Float3, "radiance added on top (sums split components)");
     color = output("color", Format::Float3, "radiance", &illumination);
-    param("albedoFloor", &Params::albedoFloor, 0.0, 1.0,
-          "lower bound of the albedo factor (must match Demodulate's)");
+    paramDecimal("albedoFloor", &Params::albedoFloor, 0.0, 1.0,
+                 "lower bound of the albedo factor (must match Demodulate's)");
 }
 
 const ModulatePass::Declaration& ModulatePass::declaration() {
@@ -103,6 +103,6 @@ void ModulatePass::resolve(ResolveContext& rc) {
 }
 
 void ModulatePass::execute(FrameContext& ctx, PassIO& io) {
-    HWY_DYNAMIC_DISPATCH(executeOnTarget)(ctx, io, float(p_.albedoFloor));
+    HWY_DYNAMIC_DISPATCH(executeOnTarget)(ctx, io, p_.albedoFloor);
 }
 #endif  // HWY_ONCE

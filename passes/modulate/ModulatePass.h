@@ -7,9 +7,7 @@
 class ModulatePass final : public kestrel::Pass {
 public:
     struct Params {
-        // double only so that the declared default is 1e-3 (a float member declares
-        // double(1e-3f)); the pass works with float(albedoFloor).
-        double albedoFloor = 1e-3;
+        float albedoFloor = 1e-3f;
     };
     /// Ports and parameters, declared once (kestrel/Declare.h).
     struct Declaration : kestrel::Declaration<Params> {
