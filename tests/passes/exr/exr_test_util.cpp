@@ -8,6 +8,8 @@
 #include <OpenEXR/ImfTiledOutputFile.h>
 #include <unistd.h>
 
+#include "kestrel/Error.h"
+
 namespace exrtest {
 
 TempDir::TempDir(const std::string& name)
@@ -91,6 +93,16 @@ std::string sharedData(const std::string& name) {
     fs::path p = fs::path(KESTREL_SHARED_DIR) / "data" / name;
     std::error_code ec;
     return fs::exists(p, ec) ? p.string() : std::string();
+}
+
+std::string resolveError(kestrel::Pass& pass) {
+    RecordingResolve rc(1);
+    try {
+        pass.resolve(rc);
+    } catch (const kestrel::Error& e) {
+        return e.what();
+    }
+    return "";
 }
 
 }  // namespace exrtest

@@ -69,6 +69,9 @@ private:
     int64_t first_;
 };
 
+/// The message of the Error resolving `pass` (first frame 1) throws, "" when it throws none.
+std::string resolveError(kestrel::Pass& pass);
+
 /// KESTREL_SHARED_DIR/data/<name>, or "" when absent.
 std::string sharedData(const std::string& name);
 

@@ -31,17 +31,6 @@ PassHarness loaderWith(const fs::path& dir, const std::string& channels) {
         {1, 1}, {{"path", (dir / "f.####.exr").string()}, {"channels", channels}});
 }
 
-/// The Error message resolving the loader gives ("" if none).
-std::string resolveError(PassHarness& h) {
-    RecordingResolve rc(1);
-    try {
-        h.pass().resolve(rc);
-    } catch (const kestrel::Error& e) {
-        return e.what();
-    }
-    return "";
-}
-
 }  // namespace
 
 TEST(ExrLoaderChannelExpressions, ConstantsScaleAndFlipPerChannel) {
@@ -73,7 +62,7 @@ TEST(ExrLoaderChannelExpressions, ConstantsThatCannotApplyAreRefusedNamingTheIte
              {"albedo=@nope", "no channel group"},
              {"@vray", "no preset '@vray' (presets: @arnold, @karma)"}}) {
         auto h = loaderWith(tmp.path, spec);
-        const std::string e = resolveError(h);
+        const std::string e = resolveError(h.pass());
         EXPECT_NE(e.find(why), std::string::npos) << spec << ": " << e;
     }
 }

@@ -22,13 +22,7 @@ std::string refusal(const TempDir& tmp, const std::string& name, const std::stri
     std::string pattern = name;
     pattern.replace(pattern.find("0001"), 4, "####");
     auto h = PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / pattern).string()}});
-    RecordingResolve rc(1);
-    try {
-        h.pass().resolve(rc);
-    } catch (const kestrel::Error& e) {
-        return e.what();
-    }
-    return "";
+    return resolveError(h.pass());
 }
 
 }  // namespace
