@@ -89,6 +89,26 @@ void warnIfNotDirectory(const fs::path& dir) {
 }
 }  // namespace
 
+HelperModule openHelperModule(const std::string& file) {
+    HelperModule m;
+    const auto dirs = defaultPluginDirectories();
+    if (dirs.empty()) {
+        m.error = file + ": no plugin folder to look beside";
+        return m;
+    }
+    m.path = dirs.front().parent_path() / file;
+    m.handle = ::dlopen(m.path.c_str(), RTLD_NOW | RTLD_LOCAL);
+    if (!m.handle) {
+        const char* e = ::dlerror();
+        m.error = e ? e : m.path.string() + ": not found";
+    }
+    return m;
+}
+
+void* HelperModule::symbol(const char* name) const {
+    return handle ? ::dlsym(handle, name) : nullptr;
+}
+
 std::vector<fs::path> defaultPluginDirectories() {
     std::vector<fs::path> dirs;
     // The plugin folder sits beside the framework library: <libdir>/kestrel/plugins, in the

@@ -1,7 +1,5 @@
 #include "OcioView.h"
 
-#include <dlfcn.h>
-
 #include <cstdlib>
 #include <mutex>
 
@@ -32,22 +30,18 @@ const Module& ocioModule() {
     static Module module;
     static std::once_flag once;
     std::call_once(once, [] {
-        const auto dirs = defaultPluginDirectories();
-        const std::string path =
-            dirs.empty() ? "" : (dirs.front().parent_path() / "kestrel_ocio.so").string();
-        void* handle = path.empty() ? nullptr : ::dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
-        if (!handle) {
-            const char* e = ::dlerror();
-            module.why = e ? e : path + ": not found";  // dlerror names the file
+        const HelperModule m = openHelperModule("kestrel_ocio.so");
+        if (!m.handle) {
+            module.why = m.error;
             return;
         }
-        module.open = reinterpret_cast<OpenFn>(::dlsym(handle, "kestrel_ocio_open"));
-        module.apply = reinterpret_cast<ApplyFn>(::dlsym(handle, "kestrel_ocio_apply"));
-        module.describe = reinterpret_cast<DescribeFn>(::dlsym(handle, "kestrel_ocio_describe"));
-        module.close = reinterpret_cast<CloseFn>(::dlsym(handle, "kestrel_ocio_close"));
+        module.open = reinterpret_cast<OpenFn>(m.symbol("kestrel_ocio_open"));
+        module.apply = reinterpret_cast<ApplyFn>(m.symbol("kestrel_ocio_apply"));
+        module.describe = reinterpret_cast<DescribeFn>(m.symbol("kestrel_ocio_describe"));
+        module.close = reinterpret_cast<CloseFn>(m.symbol("kestrel_ocio_close"));
         if (!module.open || !module.apply || !module.describe || !module.close) {
             module.open = nullptr;
-            module.why = path + " lacks its entry points";
+            module.why = m.path.string() + " lacks its entry points";
         }
     });
     return module;

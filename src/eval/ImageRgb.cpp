@@ -1,7 +1,6 @@
 // References and outputs that are not EXR (PNG, Radiance HDR, TIFF, ...) through OpenImageIO,
 // for `kestrel compare`, `run --reference` and `bench --reference` (eval/ExrRgb.h). OpenImageIO
 // lives in the module kestrel_oiio (OiioModule.cpp), opened here on first use.
-#include <dlfcn.h>
 #include <kestrel/Error.h>
 #include <kestrel/Plugin.h>
 
@@ -30,19 +29,15 @@ const Module& oiioModule() {
     static Module module;
     static std::once_flag once;
     std::call_once(once, [] {
-        const auto dirs = defaultPluginDirectories();
-        const std::string path =
-            dirs.empty() ? "" : (dirs.front().parent_path() / "kestrel_oiio.so").string();
-        void* handle = path.empty() ? nullptr : ::dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
-        if (!handle) {
-            const char* e = ::dlerror();
-            module.why = "this build has no OpenImageIO module (" + path + ": " +
-                         (e ? e : "not found") + "; install libopenimageio-dev and rebuild)";
+        const HelperModule m = openHelperModule("kestrel_oiio.so");
+        if (!m.handle) {
+            module.why = "this build has no OpenImageIO module (" + m.error +
+                         "; install libopenimageio-dev and rebuild)";
             return;
         }
-        module.read = reinterpret_cast<ReadFn>(::dlsym(handle, "kestrel_oiio_read"));
-        module.free = reinterpret_cast<FreeFn>(::dlsym(handle, "kestrel_oiio_free"));
-        if (!module.read || !module.free) module.why = path + " lacks its entry points";
+        module.read = reinterpret_cast<ReadFn>(m.symbol("kestrel_oiio_read"));
+        module.free = reinterpret_cast<FreeFn>(m.symbol("kestrel_oiio_free"));
+        if (!module.read || !module.free) module.why = m.path.string() + " lacks its entry points";
     });
     return module;
 }

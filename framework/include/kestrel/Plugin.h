@@ -60,6 +60,21 @@ private:
 /// The install's plugin directory followed by those in KESTREL_PLUGIN_PATH (':'-separated).
 std::vector<std::filesystem::path> defaultPluginDirectories();
 
+/// A helper module: a shared library beside the plugin folder (<libdir>/kestrel/<file>) that a
+/// plugin or tool opens only when it needs the library the module links (OpenImageIO,
+/// OpenColorIO), so that kestrel does not load that library at every start.
+struct HelperModule {
+    std::filesystem::path path;
+    void* handle = nullptr;  ///< null when it could not be opened (see error)
+    std::string error;       ///< why not: dlerror's line, which names the file
+    /// The entry point `name`, or null (also when the module is not open).
+    void* symbol(const char* name) const;
+};
+
+/// Opens the helper module `file` (RTLD_NOW | RTLD_LOCAL); it is never closed, so what it returns
+/// stays valid for the process. Open each once (std::call_once): a second call opens it again.
+HelperModule openHelperModule(const std::string& file);
+
 }  // namespace kestrel
 
 #if defined(_WIN32)
@@ -68,9 +83,9 @@ std::vector<std::filesystem::path> defaultPluginDirectories();
 #define KESTREL_EXPORT __attribute__((visibility("default")))
 #endif
 
-#define KESTREL_PLUGIN(registrarName)                                                   \
-    extern "C" KESTREL_EXPORT uint32_t kestrelPluginAbiVersion() {                      \
-        return KESTREL_PLUGIN_ABI_VERSION;                                              \
-    }                                                                                   \
-    extern "C" KESTREL_EXPORT void kestrelRegisterPlugin(::kestrel::PluginRegistrar&);  \
+#define KESTREL_PLUGIN(registrarName)                                                  \
+    extern "C" KESTREL_EXPORT uint32_t kestrelPluginAbiVersion() {                     \
+        return KESTREL_PLUGIN_ABI_VERSION;                                             \
+    }                                                                                  \
+    extern "C" KESTREL_EXPORT void kestrelRegisterPlugin(::kestrel::PluginRegistrar&); \
     extern "C" KESTREL_EXPORT void kestrelRegisterPlugin(::kestrel::PluginRegistrar& registrarName)

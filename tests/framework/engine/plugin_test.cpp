@@ -102,6 +102,18 @@ TEST(Plugin, DuplicateOfATypeRegisteredInCode) {
     EXPECT_TRUE(contains(m, "built-in code")) << m;
 }
 
+// A helper module (kestrel_ocio.so, kestrel_oiio.so) is looked for beside the plugin folder; one
+// that is not there is an error naming the file, and its entry points are null, never a crash.
+TEST(Plugin, MissingHelperModuleIsNamedAndHasNoEntryPoints) {
+    const HelperModule m = openHelperModule("kestrel_no_such_helper.so");
+    EXPECT_EQ(m.handle, nullptr);
+    EXPECT_NE(m.error.find("kestrel_no_such_helper.so"), std::string::npos) << m.error;
+    EXPECT_EQ(m.symbol("anything"), nullptr);
+    ASSERT_FALSE(defaultPluginDirectories().empty());
+    EXPECT_EQ(m.path,
+              defaultPluginDirectories().front().parent_path() / "kestrel_no_such_helper.so");
+}
+
 TEST(Plugin, NonLoadableFile) {
     fs::path dir = fs::path(::testing::TempDir()) / "kestrel_engine_plugin_test";
     fs::create_directories(dir);
