@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <deque>
+
 #include "../SvgfTestImages.h"
 #include "TemporalAccumulationPass.h"
 
@@ -187,10 +189,12 @@ PassHarness spreadStep(
     bool damagedGbuffer = false) {
     const int w = cur.extent().width, h = cur.extent().height;
     auto hs = PassHarness::make<TemporalAccumulationPass>(cur.extent(), p, threads);
-    static Image depth, normal, object;
-    depth = scalar(w, h, [](int, int) { return 2.f; });
-    normal = normals(w, h, 0.f, 0.f, 1.f);
-    object = ids(w, h, id);
+    // The G-buffer outlives the harness that reads it: kept for the test program's life (a
+    // harness binds views, and the caller reads its outputs after this returns).
+    static std::deque<Image> kept;
+    Image& depth = kept.emplace_back(scalar(w, h, [](int, int) { return 2.f; }));
+    Image& normal = kept.emplace_back(normals(w, h, 0.f, 0.f, 1.f));
+    Image& object = kept.emplace_back(ids(w, h, id));
     if (damagedGbuffer) {
         depth.at(0, 1, 1) = NAN;
         depth.at(0, w - 2, h - 2) = INFINITY;
