@@ -324,20 +324,23 @@ Scenario plainScene(Extent extent, std::function<void(int64_t, Frame&)> modify) 
     s.extent = extent;
     s.fill = [extent, modify](int64_t frame, Frame& f) {
         const int w = extent.width, h = extent.height;
+        // Looked up once per frame: per pixel, the map lookups were most of a run under ASan.
+        kestrel::Image &color = f["color"], &albedo = f["albedo"], &normal = f["normal"];
+        kestrel::Image &depth = f["depth"], &position = f["position"], &id = f["objectId"];
         for (int y = 0; y < h; ++y)
             for (int x = 0; x < w; ++x) {
                 const float base = 0.3f + 0.4f * float(x) / float(std::max(1, w - 1));
                 for (int c = 0; c < 3; ++c)
-                    f["color"].at(c, x, y) =
+                    color.at(c, x, y) =
                         0.05f + base * (0.5f + hashNoise(x, y, frame, uint32_t(c)) * 1.5f);
-                for (int c = 0; c < 3; ++c) f["albedo"].at(c, x, y) = 0.5f;
-                f["normal"].at(2, x, y) = 1.f;
+                for (int c = 0; c < 3; ++c) albedo.at(c, x, y) = 0.5f;
+                normal.at(2, x, y) = 1.f;
                 const float z = 5.f + 0.02f * float(x) + 0.01f * float(y);
-                f["depth"].at(0, x, y) = z;
-                f["position"].at(0, x, y) = 0.01f * float(x);
-                f["position"].at(1, x, y) = -0.01f * float(y);
-                f["position"].at(2, x, y) = -z;
-                f["objectId"].atInt(x, y) = 0;
+                depth.at(0, x, y) = z;
+                position.at(0, x, y) = 0.01f * float(x);
+                position.at(1, x, y) = -0.01f * float(y);
+                position.at(2, x, y) = -z;
+                id.atInt(x, y) = 0;
             }
         if (modify) modify(frame, f);
     };

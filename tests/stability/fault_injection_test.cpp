@@ -59,16 +59,23 @@ const char* const kChannels[] = {"color",
 /// The plain scene with every channel svgf.json reads: the split of the colour (0.9 diffuse,
 /// 0.1 specular), albedos 0.5, no emission.
 void fillSplit(int64_t, Frame& f) {
+    // Images looked up once: per pixel, the map lookups were most of a run under ASan.
+    const kestrel::Image& color = f["color"];
+    kestrel::Image &diffuse = f["diffuse"], &specular = f["specular"];
     for (int y = 0; y < kExtent.height; ++y)
         for (int x = 0; x < kExtent.width; ++x)
             for (int c = 0; c < 3; ++c) {
-                const float v = f["color"].at(c, x, y);
-                f["diffuse"].at(c, x, y) = 0.9f * v;
-                f["specular"].at(c, x, y) = 0.1f * v;
-                for (const char* a : {"diffuseAlbedo", "specularAlbedo", "jitteredAlbedo",
-                                      "jitteredDiffuseAlbedo", "jitteredSpecularAlbedo"})
-                    f[a].at(c, x, y) = 0.5f;
+                const float v = color.at(c, x, y);
+                diffuse.at(c, x, y) = 0.9f * v;
+                specular.at(c, x, y) = 0.1f * v;
             }
+    for (const char* a : {"diffuseAlbedo", "specularAlbedo", "jitteredAlbedo",
+                          "jitteredDiffuseAlbedo", "jitteredSpecularAlbedo"}) {
+        kestrel::Image& albedo = f[a];
+        for (int y = 0; y < kExtent.height; ++y)
+            for (int x = 0; x < kExtent.width; ++x)
+                for (int c = 0; c < 3; ++c) albedo.at(c, x, y) = 0.5f;
+    }
 }
 
 /// `value` as an object id: ids are integers, so the float classes become the extreme ids.
@@ -81,9 +88,10 @@ int32_t asId(float value) {
 /// Writes `value` to every channel of `port` in the block.
 void plant(Frame& f, const std::string& port, float value) {
     kestrel::Image& img = f[port];
+    const bool isId = port == "objectId";
     for (int y = kBlockY; y < kBlockY + kBlock; ++y)
         for (int x = kBlockX; x < kBlockX + kBlock; ++x) {
-            if (port == "objectId") {
+            if (isId) {
                 img.atInt(x, y) = asId(value);
                 continue;
             }
