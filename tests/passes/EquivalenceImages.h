@@ -1,11 +1,13 @@
 #pragma once
 // Inputs for the equivalence tests of optimised kernels against their plain scalar references:
 // random G-buffers with object and depth edges, and the same sprinkled with extreme values
-// (NaN, +-Inf, 1e30, negatives, denormals, zeros).
+// (tests/ExtremeValues.h: NaN, +-Inf, 1e30, negatives, denormals, signed zeros).
 #include <cmath>
 #include <limits>
 #include <string>
+#include <vector>
 
+#include "../ExtremeValues.h"
 #include "SvgfTestImages.h"
 
 namespace svgftest {
@@ -36,16 +38,8 @@ inline RandomGBuffer randomGBuffer(int w, int h, int seed) {
 
 /// Overwrites about `fraction` of the values of every channel with extreme ones.
 inline void sprinkleExtremes(Image& im, int seed, float fraction = 0.03f) {
-    const float kExtremes[] = {std::numeric_limits<float>::quiet_NaN(),
-                               std::numeric_limits<float>::infinity(),
-                               -std::numeric_limits<float>::infinity(),
-                               1e30f,
-                               -1e30f,
-                               -1.f,
-                               std::numeric_limits<float>::denorm_min(),
-                               0.f,
-                               3.4e38f};
-    const int n = int(sizeof(kExtremes) / sizeof(kExtremes[0]));
+    const std::vector<float>& kExtremes = testvalues::extremeValues();
+    const int n = int(kExtremes.size());
     for (int c = 0; c < std::max(1, kestrel::channelCount(im.format())); ++c)
         for (int y = 0; y < im.height(); ++y)
             for (int x = 0; x < im.width(); ++x)

@@ -78,13 +78,4 @@ inline bool allFinite(const Image& im) {
     return true;
 }
 
-inline bool identical(const Image& a, const Image& b) {
-    if (a.extent() != b.extent() || a.format() != b.format()) return false;
-    for (int c = 0; c < kestrel::channelCount(a.format()); ++c)
-        for (int y = 0; y < a.height(); ++y)
-            for (int x = 0; x < a.width(); ++x)
-                if (std::memcmp(&a.at(c, x, y), &b.at(c, x, y), sizeof(float)) != 0) return false;
-    return true;
-}
-
 }  // namespace svgftest

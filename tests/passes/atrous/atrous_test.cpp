@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "../FactResolve.h"
+#include "../SameBits.h"
 #include "../SvgfTestImages.h"
 #include "ATrousPass.h"
 #include "HwyTargets.h"
@@ -278,8 +279,8 @@ TEST(ATrous, IdenticalWithOneAndTwoThreads) {
     for (int step : {1, 8}) {
         auto a = runATrous(s, {{"step", int64_t(step)}}, 1);
         auto b = runATrous(s, {{"step", int64_t(step)}}, 2);
-        EXPECT_TRUE(identical(a.out("color"), b.out("color")));
-        EXPECT_TRUE(identical(a.out("variance"), b.out("variance")));
+        EXPECT_TRUE(sameBits(a.out("color"), b.out("color")));
+        EXPECT_TRUE(sameBits(a.out("variance"), b.out("variance")));
     }
 }
 
@@ -471,9 +472,8 @@ TEST_P(ATrousEveryTarget, ReadingInPlaceAndFromSanitisedCopiesAgree) {
             }
             auto a = runATrous(clean, {{"step", int64_t(step)}}, 1);
             auto b = runATrous(dirty, {{"step", int64_t(step)}}, 2);
-            EXPECT_TRUE(identical(a.out("color"), b.out("color")))
-                << kind.what << ", step " << step;
-            EXPECT_TRUE(identical(a.out("variance"), b.out("variance")))
+            EXPECT_TRUE(sameBits(a.out("color"), b.out("color"))) << kind.what << ", step " << step;
+            EXPECT_TRUE(sameBits(a.out("variance"), b.out("variance")))
                 << kind.what << ", step " << step;
             EXPECT_TRUE(allFinite(b.out("color")) && allFinite(b.out("variance")));
         }
@@ -510,7 +510,7 @@ TEST_P(ATrousEveryTarget, ReadingInPlaceAgreesWithoutVarianceOutputWithoutNormal
             };
             auto a = run(clean, 1);
             auto b = run(dirty, 2);
-            EXPECT_TRUE(identical(a.out("color"), b.out("color")))
+            EXPECT_TRUE(sameBits(a.out("color"), b.out("color")))
                 << "width " << w << ", sigmaN " << sigmaN;
             EXPECT_TRUE(allFinite(b.out("color")));
         }
@@ -592,13 +592,13 @@ void expectFusedPairMatchesSeparatePasses(const FusedCase& c) {
     Pass* passes[2] = {&a.pass(), &b.pass()};
     PassIO* ios[2] = {&a, &b};
     a.pass().executeFused(a.ctx, passes, ios);
-    EXPECT_TRUE(identical(a.out("color"), aColor)) << c.what;
-    EXPECT_TRUE(identical(b.out("color"), bColor)) << c.what;
+    EXPECT_TRUE(sameBits(a.out("color"), aColor)) << c.what;
+    EXPECT_TRUE(sameBits(b.out("color"), bColor)) << c.what;
     if (aHasVar) {
-        EXPECT_TRUE(identical(a.out("variance"), aVar)) << c.what;
+        EXPECT_TRUE(sameBits(a.out("variance"), aVar)) << c.what;
     }
     if (bHasVar) {
-        EXPECT_TRUE(identical(b.out("variance"), bVar)) << c.what;
+        EXPECT_TRUE(sameBits(b.out("variance"), bVar)) << c.what;
     }
 }
 }  // namespace

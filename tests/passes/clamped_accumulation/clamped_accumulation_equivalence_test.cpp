@@ -8,7 +8,10 @@
 #include <limits>
 #include <random>
 #include <string>
+#include <vector>
 
+#include "../../ExtremeValues.h"
+#include "../SameBits.h"
 #include "ClampedAccumulationPass.h"
 #include "ClampedAccumulationReference.h"
 #include "HwyTargets.h"
@@ -17,6 +20,8 @@
 using namespace kestrel;
 using namespace kestrel::passes;
 using kestrel::testing::PassHarness;
+
+using svgftest::sameBits;
 
 namespace {
 
@@ -28,20 +33,8 @@ Inputs randomInputs(int w, int h, unsigned seed, float extremeFraction) {
     Inputs in{Image(w, h, Format::Float3), Image(w, h, Format::Float3), Image(w, h, Format::Float)};
     std::mt19937 rng(seed);
     std::uniform_real_distribution<float> u(0.f, 1.f);
-    const float vals[] = {std::numeric_limits<float>::quiet_NaN(),
-                          std::numeric_limits<float>::infinity(),
-                          -std::numeric_limits<float>::infinity(),
-                          1e30f,
-                          -1e30f,
-                          1e18f,
-                          std::numeric_limits<float>::max(),
-                          0.f,
-                          -0.f,
-                          -1.f,
-                          std::numeric_limits<float>::denorm_min(),
-                          -3e-39f,
-                          1e-30f};
-    constexpr int kVals = int(sizeof(vals) / sizeof(vals[0]));
+    const std::vector<float> vals = testvalues::extremeValuesAnd({1e18f});
+    const int kVals = int(vals.size());
     auto value = [&] {
         if (u(rng) < extremeFraction) return vals[int(u(rng) * kVals) % kVals];
         return 2.f * u(rng) * u(rng) * (u(rng) < 0.03f ? 50.f : 1.f);
@@ -56,17 +49,6 @@ Inputs randomInputs(int w, int h, unsigned seed, float extremeFraction) {
         in.len.channel(0)[i] = r < 0.1f ? 0.f : r < 0.12f ? -1.f : r < 0.13f ? NAN : 1.f;
     }
     return in;
-}
-
-::testing::AssertionResult sameBits(const Image& a, const Image& b) {
-    for (int c = 0; c < 3; ++c)
-        for (int y = 0; y < a.height(); ++y)
-            for (int x = 0; x < a.width(); ++x)
-                if (std::memcmp(&a.at(c, x, y), &b.at(c, x, y), sizeof(float)) != 0)
-                    return ::testing::AssertionFailure()
-                           << "channel " << c << " pixel (" << x << ", " << y << "): pass "
-                           << a.at(c, x, y) << " reference " << b.at(c, x, y);
-    return ::testing::AssertionSuccess();
 }
 
 void expectEquivalent(const Inputs& in, bool withHist, bool withLen, const clampref::Params& p,

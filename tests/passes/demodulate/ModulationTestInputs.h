@@ -5,6 +5,9 @@
 
 #include <limits>
 #include <random>
+#include <vector>
+
+#include "../../ExtremeValues.h"
 
 namespace modtest {
 
@@ -14,23 +17,8 @@ inline kestrel::Image randomImage(int w, int h, unsigned seed, float scale, floa
     kestrel::Image im(w, h, kestrel::Format::Float3);
     std::mt19937 rng(seed);
     std::uniform_real_distribution<float> u(0.f, 1.f);
-    const float vals[] = {std::numeric_limits<float>::quiet_NaN(),
-                          std::numeric_limits<float>::infinity(),
-                          -std::numeric_limits<float>::infinity(),
-                          1e30f,
-                          -1e30f,
-                          1e16f,
-                          std::numeric_limits<float>::max(),
-                          0.f,
-                          -0.f,
-                          -1.f,
-                          std::numeric_limits<float>::denorm_min(),
-                          -3e-39f,
-                          1e-30f,
-                          1e-3f,
-                          9.99e-4f,
-                          1e-8f};
-    constexpr int kVals = int(sizeof(vals) / sizeof(vals[0]));
+    const std::vector<float> vals = testvalues::extremeValuesAnd({1e16f, 1e-3f, 9.99e-4f, 1e-8f});
+    const int kVals = int(vals.size());
     for (int c = 0; c < 3; ++c)
         for (size_t i = 0; i < im.extent().pixels(); ++i) {
             float v = scale * u(rng) * u(rng) * (u(rng) < 0.02f ? 100.f : 1.f);

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <string>
 
+#include "../SameBits.h"
 #include "../demodulate/ModulationTestInputs.h"
 #include "HwyTargets.h"
 #include "ModulatePass.h"
@@ -15,18 +16,9 @@
 using namespace kestrel;
 using kestrel::testing::PassHarness;
 
-namespace {
+using svgftest::sameBits;
 
-::testing::AssertionResult sameBits(const Image& a, const Image& b) {
-    for (int c = 0; c < 3; ++c)
-        for (int y = 0; y < a.height(); ++y)
-            for (int x = 0; x < a.width(); ++x)
-                if (std::memcmp(&a.at(c, x, y), &b.at(c, x, y), sizeof(float)) != 0)
-                    return ::testing::AssertionFailure()
-                           << "channel " << c << " pixel (" << x << ", " << y << "): pass "
-                           << a.at(c, x, y) << " reference " << b.at(c, x, y);
-    return ::testing::AssertionSuccess();
-}
+namespace {
 
 void expectEquivalent(int w, int h, unsigned seed, float extremes) {
     const Image color = modtest::randomImage(w, h, seed, 4.f, extremes);

@@ -16,7 +16,9 @@
 #include <string>
 #include <vector>
 
+#include "../../ExtremeValues.h"
 #include "../FactResolve.h"
+#include "../SameBits.h"
 #include "HwyTargets.h"
 #include "ReprojectionPass.h"
 #include "ReprojectionReference.h"
@@ -28,6 +30,8 @@ using namespace kestrel;
 using kestrel::testing::PassHarness;
 using reprojscene::Frames;
 using reprojscene::hash01;
+
+using svgftest::sameBits;
 
 namespace {
 
@@ -97,17 +101,6 @@ std::map<std::string, ParamValue> passParams(const reprojref::Params& p) {
 }
 
 /// Bitwise comparison; reports the first differing float.
-::testing::AssertionResult sameBits(const Image& a, const Image& b) {
-    for (int c = 0; c < channelCount(a.format()); ++c)
-        for (int y = 0; y < a.height(); ++y)
-            for (int x = 0; x < a.width(); ++x)
-                if (std::memcmp(&a.at(c, x, y), &b.at(c, x, y), sizeof(float)) != 0)
-                    return ::testing::AssertionFailure()
-                           << "channel " << c << " pixel (" << x << ", " << y << "): pass "
-                           << a.at(c, x, y) << " reference " << b.at(c, x, y);
-    return ::testing::AssertionSuccess();
-}
-
 void expectEquivalent(const Frames& f, const Binding& b, const reprojref::Params& p, int threads,
                       const std::string& what) {
     SCOPED_TRACE(what + (p.catmullRom ? " catmullrom" : " bilinear") + " threads " +
@@ -198,24 +191,8 @@ void expectEquivalentAll(const Frames& f, const Binding& b, const std::string& w
 
 /// Overwrites about `fraction` of every float input's values with extreme ones.
 void sprinkleExtremes(Frames& f, float fraction, int seed) {
-    const float vals[] = {std::numeric_limits<float>::quiet_NaN(),
-                          std::numeric_limits<float>::infinity(),
-                          -std::numeric_limits<float>::infinity(),
-                          1e30f,
-                          -1e30f,
-                          std::numeric_limits<float>::max(),
-                          0.f,
-                          -0.f,
-                          -1.f,
-                          std::numeric_limits<float>::denorm_min(),
-                          -3e-39f,
-                          1e-30f,
-                          2.f,
-                          -2.5f,
-                          1e10f,
-                          1e7f,
-                          -1e7f};
-    constexpr int kVals = int(sizeof(vals) / sizeof(vals[0]));
+    const std::vector<float> vals = testvalues::extremeValuesAnd({2.f, -2.5f, 1e10f, 1e7f, -1e7f});
+    const int kVals = int(vals.size());
     int s = seed;
     for (Image* im : {&f.depth, &f.normal, &f.motion, &f.position, &f.prevDepth, &f.prevNormal,
                       &f.prevColor, &f.prevMoments, &f.prevHistoryLength}) {

@@ -2,6 +2,7 @@
 
 #include <deque>
 
+#include "../SameBits.h"
 #include "../SvgfTestImages.h"
 #include "TemporalAccumulationPass.h"
 
@@ -176,7 +177,7 @@ TEST(TemporalAccumulation, IdenticalWithOneAndTwoThreads) {
     auto a = step(cur, &hist, {}, 1);
     auto b = step(cur, &hist, {}, 2);
     for (const char* o : {"color", "moments", "historyLength", "variance"})
-        EXPECT_TRUE(identical(a.out(o), b.out(o))) << o;
+        EXPECT_TRUE(sameBits(a.out(o), b.out(o))) << o;
 }
 
 // ---- The firefly clamp's excess spread over the same surface (FireflySpread.h) ----
@@ -327,7 +328,7 @@ TEST(TemporalAccumulation, FireflySpreadNeedsAHistory) {
     none.length.fill(0.f);
     auto dropped = spreadStep(cur, none, {{"fireflySpread", 0}});
     auto spread = spreadStep(cur, none, {{"fireflySpread", 3}});
-    EXPECT_TRUE(identical(spread.out("color"), dropped.out("color")));
+    EXPECT_TRUE(sameBits(spread.out("color"), dropped.out("color")));
 }
 
 TEST(TemporalAccumulation, FireflySpreadIsIdenticalWithOneAndTwoThreadsAndFiniteOnDamage) {
@@ -338,7 +339,7 @@ TEST(TemporalAccumulation, FireflySpreadIsIdenticalWithOneAndTwoThreadsAndFinite
     auto stripes = [](int x, int y) { return (x / 7 + y / 11) % 3; };
     auto a = spreadStep(cur, hist, {{"fireflySpread", 9}}, 1, stripes, true);
     auto b = spreadStep(cur, hist, {{"fireflySpread", 9}}, 2, stripes, true);
-    EXPECT_TRUE(identical(a.out("color"), b.out("color")));
+    EXPECT_TRUE(sameBits(a.out("color"), b.out("color")));
     EXPECT_TRUE(allFinite(a.out("color")));
     auto dropped = spreadStep(cur, hist, {{"fireflySpread", 0}}, 1, stripes, true);
     EXPECT_GT(sum(a.out("color"), 1), sum(dropped.out("color"), 1));

@@ -3,6 +3,7 @@
 
 #include <cstdio>
 
+#include "../SameBits.h"
 #include "../SvgfTestImages.h"
 #include "HwyTargets.h"
 #include "VarianceEstimationPass.h"
@@ -108,8 +109,8 @@ TEST(VarianceEstimation, IdenticalWithOneAndTwoThreads) {
             in.moments.at(1, x, y) = hash01(x, y) * hash01(x, y) + hash01(x, y, 5);
         }
     auto a = run(in, 1), b = run(in, 2);
-    EXPECT_TRUE(identical(a.out("color"), b.out("color")));
-    EXPECT_TRUE(identical(a.out("variance"), b.out("variance")));
+    EXPECT_TRUE(sameBits(a.out("color"), b.out("color")));
+    EXPECT_TRUE(sameBits(a.out("variance"), b.out("variance")));
 }
 
 // --- Equivalence of the vectorised pass with the plain scalar reference (VarianceReference.h).
@@ -235,8 +236,10 @@ TEST(VarianceEstimation, SpatialEstimateIsTheSameAtAnyExposure) {
 TEST_P(VarianceEveryTarget, VectorisedMatchesScalarReferenceOnExtremeInputs) {
     // Without a luminance term the 1e15 extremes are averaged with O(1) neighbours, so the fast
     // exp2/log2 weights' relative error (~2e-5, times sigmaN in the normal term) shows against
-    // |reference| + 1: measured 1.2e-4 (AVX3), 2e-4 allowed. Random inputs stay within 1e-4.
-    expectEquivalent(equivalenceCase(77, 29, 2, true), 2, 2e-4);
+    // |reference| + 1, more where +-1e30 taps cancel in one window: measured 3.7e-4 (AVX2,
+    // AVX3; SSE4 9.6e-5) with tests/ExtremeValues.h's list, 5e-4 allowed. Random inputs stay
+    // within 1e-4.
+    expectEquivalent(equivalenceCase(77, 29, 2, true), 2, 5e-4);
 }
 
 TEST_P(VarianceEveryTarget, SameOutputForOneAndTwoThreads) {
@@ -254,8 +257,8 @@ TEST_P(VarianceEveryTarget, SameOutputForOneAndTwoThreads) {
         return std::make_pair(clone(h.out("color")), clone(h.out("variance")));
     };
     auto a = runWith(1), b = runWith(2);
-    EXPECT_TRUE(identical(a.first, b.first));
-    EXPECT_TRUE(identical(a.second, b.second));
+    EXPECT_TRUE(sameBits(a.first, b.first));
+    EXPECT_TRUE(sameBits(a.second, b.second));
 }
 
 TEST(VarianceEstimation, ExactParameterRunsThePlainPath) {
@@ -274,8 +277,8 @@ TEST(VarianceEstimation, ExactParameterRunsThePlainPath) {
                                  &e.var.view(),     &e.g.depth.view(), &e.g.normal.view(),
                                  &e.g.ids.view()};
     reference::varianceEstimation(in, refC, &refV.view(), 0, 20);
-    EXPECT_TRUE(identical(h.out("color"), refC));
-    EXPECT_TRUE(identical(h.out("variance"), refV));
+    EXPECT_TRUE(sameBits(h.out("color"), refC));
+    EXPECT_TRUE(sameBits(h.out("variance"), refV));
 }
 
 // --- Two chains on one G-buffer run as a fused pair (executeFused): each tap weighed once for
@@ -330,11 +333,11 @@ void expectFusedPairMatchesSeparatePasses(const PairCase& c) {
     Pass* passes[2] = {&a.pass(), &b.pass()};
     PassIO* ios[2] = {&a, &b};
     a.pass().executeFused(a.ctx, passes, ios);
-    EXPECT_TRUE(identical(a.out("color"), aColor));
-    EXPECT_TRUE(identical(a.out("variance"), aVar));
-    EXPECT_TRUE(identical(b.out("color"), bColor));
+    EXPECT_TRUE(sameBits(a.out("color"), aColor));
+    EXPECT_TRUE(sameBits(a.out("variance"), aVar));
+    EXPECT_TRUE(sameBits(b.out("color"), bColor));
     if (bVar) {
-        EXPECT_TRUE(identical(b.out("variance"), *bVar));
+        EXPECT_TRUE(sameBits(b.out("variance"), *bVar));
     }
 }
 }  // namespace
