@@ -8,7 +8,10 @@
 // Why: with one or two samples a pixel's colour is often 0 (most 1-spp paths of dim indirect
 // light carry nothing), and the filters downstream stop at geometry (normals at sigmaN 128 on a
 // curved surface) and at luminance differences scaled by a variance estimated from those same few
-// samples, often 0: such a pixel kept its 1-spp black among filled neighbours (a speckle).
+// samples, often 0: such a pixel kept its 1-spp black among filled neighbours (a speckle). The
+// normals themselves can isolate a pixel (Cycles' Denoising Normal follows each sample through
+// glass and mirrors): where its neighbours hold under a quarter of the weight, the fill is redone
+// on depth and object id alone, skipping only taps that face away.
 #include <kestrel/Kestrel.h>
 
 class HistoryFixPass final : public kestrel::Pass {

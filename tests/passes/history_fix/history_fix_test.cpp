@@ -1,7 +1,8 @@
 // HistoryFix: a pixel with no history takes its neighbours on the same surface (never across an
-// object or a depth edge), one with a short history keeps a growing share of its own colour, a
-// pixel with a history passes unchanged, non-finite inputs give finite
-// outputs, and the result does not depend on the thread count.
+// object or a depth edge, nor from taps facing away; on depth alone where the normals isolate
+// it), one with a short history keeps a growing share of its own colour, a pixel with a history
+// passes unchanged, non-finite inputs give finite outputs, and the result does not depend on the
+// thread count.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -88,6 +89,22 @@ TEST(HistoryFix, NeverTakesAnotherObjectOrSurface) {
         for (int x = 0; x < 7; ++x)
             if (x != 3 || y != 3) r.normal.at(2, x, y) = -1.f;  // facing away: a mirror's sky
     EXPECT_EQ(run(r).out("color").at(0, 3, 3), 0.f);
+}
+
+// A pixel whose neighbours all fail the normal weight (Cycles' Denoising Normal follows each
+// sample through a window: this one saw the reflected ground, its neighbours the reflected wall
+// across the street) is filled on depth and id alone instead of keeping its black 1-spp sample,
+// which A-Trous' normal test would isolate as well (a speckle).
+TEST(HistoryFix, PixelIsolatedByItsNormalIsFilledOnItsPlane) {
+    Frame f = wall(1.f, 8.f);
+    f.normal.at(1, 3, 3) = 1.f;  // the centre's normal (0, 1, 0): perpendicular to the others'
+    f.normal.at(2, 3, 3) = 0.f;
+    EXPECT_GT(run(f).out("color").at(0, 3, 3), 0.9f);
+    // With a history it keeps its colour as before.
+    Frame g = wall(8.f, 8.f);
+    g.normal.at(1, 3, 3) = 1.f;
+    g.normal.at(2, 3, 3) = 0.f;
+    EXPECT_EQ(run(g).out("color").at(0, 3, 3), 0.f);
 }
 
 TEST(HistoryFix, NonFiniteInputsGiveFiniteOutputs) {
