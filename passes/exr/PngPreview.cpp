@@ -13,28 +13,6 @@
 
 namespace kestrel::exr {
 
-float toneMap(float x, ToneMap op) {
-    if (!(x > 0.f)) return 0.f;  // NaN, negative
-    if (std::isinf(x)) return 1.f;
-    switch (op) {
-        case ToneMap::Aces:
-            // Narkowicz 2015, "ACES Filmic Tone Mapping Curve" (fit of the ACES RRT + ODT).
-            x = (x * (2.51f * x + 0.03f)) / (x * (2.43f * x + 0.59f) + 0.14f);
-            break;
-        case ToneMap::Reinhard:
-            x = x / (1.f + x);  // Reinhard et al. 2002, eq. 3
-            break;
-        case ToneMap::Clamp:
-            break;
-    }
-    return std::clamp(x, 0.f, 1.f);
-}
-
-float srgbEncode(float v) {
-    v = std::clamp(v, 0.f, 1.f);
-    return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.f / 2.4f) - 0.055f;
-}
-
 namespace {
 /// errno as words ("No space left on device"); a write that failed without setting it says so.
 std::string errnoReason() {
@@ -74,7 +52,7 @@ void linearRow(const ImageView& img, int y, float gain, std::vector<float>& row)
 }
 
 /// The 8-bit display pixels of `img`: ids as colours; colour through `view` or `op` and sRGB.
-std::vector<uint8_t> displayPixels(const ImageView& img, float gain, ToneMap op,
+std::vector<uint8_t> displayPixels(const ImageView& img, float gain, display::ToneCurve op,
                                    const OcioView* view) {
     const int W = img.width(), H = img.height();
     std::vector<uint8_t> rgb(size_t(W) * size_t(H) * 3);
@@ -91,15 +69,16 @@ std::vector<uint8_t> displayPixels(const ImageView& img, float gain, ToneMap op,
             view->apply(row.data(), size_t(W));
             for (size_t i = 0; i < row.size(); ++i) p[i] = to8(std::isnan(row[i]) ? 0.f : row[i]);
         } else {
-            for (size_t i = 0; i < row.size(); ++i) p[i] = to8(srgbEncode(toneMap(row[i], op)));
+            for (size_t i = 0; i < row.size(); ++i)
+                p[i] = to8(display::srgbEncode(display::toneMap(row[i], op)));
         }
     }
     return rgb;
 }
 }  // namespace
 
-void writePngPreview(const ImageView& img, const std::string& path, float exposureStops, ToneMap op,
-                     const OcioView* view) {
+void writePngPreview(const ImageView& img, const std::string& path, float exposureStops,
+                     display::ToneCurve op, const OcioView* view) {
     const int W = img.width(), H = img.height();
     std::vector<uint8_t> rgb = displayPixels(img, std::exp2(exposureStops), op, view);
 
