@@ -128,7 +128,7 @@ ExrWriter::Declaration::Declaration()
           "default (1080p half RGB, 2 threads: see docs/benchmarks.md)");
     param("preview", &Params::preview, "PNG preview pattern (empty: no preview)");
     param("exposure", &Params::exposure, -20.0, 20.0, "preview exposure in stops");
-    param("tonemap", &Params::tonemap, {"aces", "reinhard", "clamp"},
+    param("tonemap", &Params::tonemap, display::toneCurveNames(),
           "preview tone curve (where $OCIO names no OpenColorIO config: with one, previews use "
           "its default display and view)");
     param("keepPasses", &Params::keepPasses,

@@ -27,7 +27,7 @@ public:
         int zipLevel = 4;
         std::string preview;
         float exposure = 0.f;
-        ToneMap tonemap = ToneMap::Aces;
+        display::ToneCurve tonemap = display::ToneCurve::Aces;
         bool keepPasses = false;
     };
     /// Ports and parameters, declared once (kestrel/Declare.h).

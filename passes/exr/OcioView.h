@@ -2,7 +2,7 @@
 // Previews through the user's colour management: the OpenColorIO config that $OCIO names (a
 // studio's config, Blender's with Filmic or AgX), from its scene_linear role to its default
 // display and view, as the user's viewer shows renders. Without $OCIO the previews keep the
-// built-in tone curve and sRGB (PngPreview.h).
+// built-in tone curve and sRGB (display/ToneMap.h).
 #include <cstddef>
 #include <memory>
 #include <string>

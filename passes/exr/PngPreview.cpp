@@ -1,39 +1,15 @@
 #include "PngPreview.h"
 
-#include <png.h>
-
-#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <vector>
 
+#include "display/Png.h"
 #include "kestrel/Error.h"
 
 namespace kestrel::exr {
-
-float toneMap(float x, ToneMap op) {
-    if (!(x > 0.f)) return 0.f;  // NaN, negative
-    if (std::isinf(x)) return 1.f;
-    switch (op) {
-        case ToneMap::Aces:
-            // Narkowicz 2015, "ACES Filmic Tone Mapping Curve" (fit of the ACES RRT + ODT).
-            x = (x * (2.51f * x + 0.03f)) / (x * (2.43f * x + 0.59f) + 0.14f);
-            break;
-        case ToneMap::Reinhard:
-            x = x / (1.f + x);  // Reinhard et al. 2002, eq. 3
-            break;
-        case ToneMap::Clamp:
-            break;
-    }
-    return std::clamp(x, 0.f, 1.f);
-}
-
-float srgbEncode(float v) {
-    v = std::clamp(v, 0.f, 1.f);
-    return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.f / 2.4f) - 0.055f;
-}
 
 namespace {
 /// errno as words ("No space left on device"); a write that failed without setting it says so.
@@ -43,9 +19,7 @@ std::string errnoReason() {
 }  // namespace
 
 namespace {
-uint8_t to8(float v) {
-    return uint8_t(std::lround(std::clamp(v, 0.f, 1.f) * 255.f));
-}
+using display::to8;
 
 /// A stable colour per object id (background -1: black).
 void idColour(int32_t id, uint8_t rgb[3]) {
@@ -74,7 +48,7 @@ void linearRow(const ImageView& img, int y, float gain, std::vector<float>& row)
 }
 
 /// The 8-bit display pixels of `img`: ids as colours; colour through `view` or `op` and sRGB.
-std::vector<uint8_t> displayPixels(const ImageView& img, float gain, ToneMap op,
+std::vector<uint8_t> displayPixels(const ImageView& img, float gain, display::ToneCurve op,
                                    const OcioView* view) {
     const int W = img.width(), H = img.height();
     std::vector<uint8_t> rgb(size_t(W) * size_t(H) * 3);
@@ -91,38 +65,31 @@ std::vector<uint8_t> displayPixels(const ImageView& img, float gain, ToneMap op,
             view->apply(row.data(), size_t(W));
             for (size_t i = 0; i < row.size(); ++i) p[i] = to8(std::isnan(row[i]) ? 0.f : row[i]);
         } else {
-            for (size_t i = 0; i < row.size(); ++i) p[i] = to8(srgbEncode(toneMap(row[i], op)));
+            for (size_t i = 0; i < row.size(); ++i)
+                p[i] = to8(display::srgbEncode(display::toneMap(row[i], op)));
         }
     }
     return rgb;
 }
 }  // namespace
 
-void writePngPreview(const ImageView& img, const std::string& path, float exposureStops, ToneMap op,
-                     const OcioView* view) {
+void writePngPreview(const ImageView& img, const std::string& path, float exposureStops,
+                     display::ToneCurve op, const OcioView* view) {
     const int W = img.width(), H = img.height();
     std::vector<uint8_t> rgb = displayPixels(img, std::exp2(exposureStops), op, view);
 
+    std::vector<unsigned char> bytes;
+    try {
+        bytes = display::encodePng(rgb.data(), W, H, /*srgb=*/true);
+    } catch (const Error& e) {
+        throw Error("cannot write PNG " + path + ": " + e.what());
+    }
     errno = 0;  // what the failing open or write sets is the reason the user is given
     std::FILE* f = std::fopen(path.c_str(), "wb");
     if (!f) throw Error("cannot create PNG " + path + ": " + errnoReason());
-    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
-    png_infop info = png ? png_create_info_struct(png) : nullptr;
-    if (!png || !info || setjmp(png_jmpbuf(png))) {
-        png_destroy_write_struct(&png, &info);
-        const std::string why = errnoReason();
-        std::fclose(f);
-        throw Error("cannot write PNG " + path + ": " + why);
-    }
-    png_init_io(png, f);
-    png_set_IHDR(png, info, png_uint_32(W), png_uint_32(H), 8, PNG_COLOR_TYPE_RGB,
-                 PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
-    png_set_sRGB(png, info, PNG_sRGB_INTENT_PERCEPTUAL);
-    png_write_info(png, info);
-    for (int y = 0; y < H; ++y) png_write_row(png, &rgb[size_t(y) * size_t(W) * 3]);
-    png_write_end(png, nullptr);
-    png_destroy_write_struct(&png, &info);
-    if (std::fclose(f) != 0) throw Error("cannot write PNG " + path + ": " + errnoReason());
+    const bool written = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
+    if (std::fclose(f) != 0 || !written)
+        throw Error("cannot write PNG " + path + ": " + errnoReason());
 }
 
 }  // namespace kestrel::exr

@@ -1,38 +1,8 @@
 #include "ToneMapPass.h"
 
-#include <algorithm>
 #include <cmath>
 
 namespace kestrel::passes {
-
-namespace {
-// Above this a value is white under every operator; clamping first keeps the rational
-// operators free of Inf/Inf.
-constexpr float kMaxLinear = 1e6f;
-}  // namespace
-
-float toneMapValue(float x, ToneOperator op) {
-    if (!(x > 0.f)) return 0.f;  // negative, zero and NaN
-    x = std::min(x, kMaxLinear);
-    switch (op) {
-        case ToneOperator::Reinhard:
-            // Reinhard et al. 2002, eq. 3, per channel.
-            return x / (1.f + x);
-        case ToneOperator::Aces: {
-            // Narkowicz 2015, "ACES Filmic Tone Mapping Curve" (fit of the ACES RRT+ODT).
-            float v = (x * (2.51f * x + 0.03f)) / (x * (2.43f * x + 0.59f) + 0.14f);
-            return std::clamp(v, 0.f, 1.f);
-        }
-        case ToneOperator::Clamp:
-            return std::min(x, 1.f);
-    }
-    return 0.f;
-}
-
-float srgbEncode(float x) {
-    x = std::clamp(x, 0.f, 1.f);
-    return x <= 0.0031308f ? 12.92f * x : 1.055f * std::pow(x, 1.f / 2.4f) - 0.055f;
-}
 
 ToneMapPass::Declaration::Declaration()
     : kestrel::Declaration<Params>(
@@ -41,7 +11,7 @@ ToneMapPass::Declaration::Declaration()
     colorOut = output("color", Format::Float3, "tone-mapped colour in [0,1]");
     param("exposure", &Params::exposure, -30.0, 30.0,
           "exposure in stops: colour is scaled by 2^exposure");
-    param("operator", &Params::op, {"reinhard", "aces", "clamp"},
+    param("operator", &Params::op, display::toneCurveNames(),
           "tone curve: reinhard x/(1+x), aces (Narkowicz fit), clamp to [0,1]");
     param("srgb", &Params::srgb, "apply the sRGB transfer function (off: linear [0,1] output)");
 }
@@ -65,8 +35,8 @@ void ToneMapPass::execute(FrameContext& ctx, PassIO& io) {
                 const float* src = in.row(c, y);
                 float* dst = out.row(c, y);
                 for (int x = 0; x < w; ++x) {
-                    float v = toneMapValue(src[x] * scale_, p_.op);
-                    dst[x] = p_.srgb ? srgbEncode(v) : v;
+                    const float v = display::toneMap(src[x] * scale_, p_.op);
+                    dst[x] = p_.srgb ? display::srgbEncode(v) : v;
                 }
             }
     });

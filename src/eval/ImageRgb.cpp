@@ -9,6 +9,7 @@
 #include <mutex>
 #include <string>
 
+#include "display/ToneMap.h"
 #include "eval/ExrRgb.h"
 
 namespace kestrel::eval {
@@ -42,11 +43,6 @@ const Module& oiioModule() {
     return module;
 }
 
-/// The sRGB transfer function inverted (IEC 61966-2-1): 8- and 16-bit files hold display values.
-float srgbDecode(float v) {
-    return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
-}
-
 }  // namespace
 
 Image readImageRgb(const std::filesystem::path& path) {
@@ -67,7 +63,7 @@ Image readImageRgb(const std::filesystem::path& path) {
     for (size_t i = 0; i < size_t(w) * size_t(h); ++i)
         for (int c = 0; c < 3; ++c) {
             const float v = pixels.get()[i * size_t(n) + size_t(n == 1 ? 0 : c)];
-            image.channel(c)[i] = integer ? srgbDecode(v) : v;
+            image.channel(c)[i] = integer ? display::srgbDecode(v) : v;
         }
     return image;
 }

@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "display/ToneMap.h"
+
 namespace kestrel::eval {
 namespace {
 
@@ -29,11 +31,6 @@ void requireSameRgb(const ImageView& a, const ImageView& b) {
 
 std::string sizeText(const ImageView& v) {
     return std::to_string(v.width()) + "x" + std::to_string(v.height());
-}
-
-// sRGB OETF, IEC 61966-2-1.
-float srgbEncode(float c) {
-    return c <= 0.0031308f ? 12.92f * c : 1.055f * std::pow(c, 1.0f / 2.4f) - 0.055f;
 }
 
 // ---- SSIM (Wang et al. 2004) ------------------------------------------------------------------
@@ -186,15 +183,16 @@ std::optional<ToneMap> parseToneMap(std::string_view name) {
 }
 
 float toneMap(ToneMap t, float x) {
-    if (!(x > 0)) return 0;  // negatives and NaN
+    using display::ToneCurve;
     switch (t) {
         case ToneMap::Reinhard:
-            // Reinhard et al. 2002 eq. 3 per channel, then a 2.2 display gamma.
-            return x > 1e30f ? 1.0f : std::pow(std::min(1.0f, x / (1.0f + x)), 1.0f / 2.2f);
+            // Saturating at 1e30, not at the previews' 1e6: between the two x / (1 + x) still
+            // changes in float, and the metrics' figures were computed without that limit.
+            return display::gamma22Encode(display::toneMap(x, ToneCurve::Reinhard, 1e30f));
         case ToneMap::Clamp:
-            return std::min(1.0f, x);
+            return display::toneMap(x, ToneCurve::Clamp);
         case ToneMap::Srgb:
-            return srgbEncode(std::min(1.0f, x));
+            return display::srgbEncode(display::toneMap(x, ToneCurve::Clamp));
     }
     return 0;
 }
@@ -232,17 +230,7 @@ Image toneMapped(const ImageView& rgb, ToneMap t) {
     for (int c = 0; c < kRgb; ++c) {
         const float* src = rgb.channel(c);
         float* dst = out.channel(c);
-        switch (t) {
-            case ToneMap::Reinhard:
-                for (size_t i = 0; i < n; ++i) dst[i] = toneMap(ToneMap::Reinhard, src[i]);
-                break;
-            case ToneMap::Clamp:
-                for (size_t i = 0; i < n; ++i) dst[i] = std::clamp(src[i], 0.0f, 1.0f);
-                break;
-            case ToneMap::Srgb:
-                for (size_t i = 0; i < n; ++i) dst[i] = toneMap(ToneMap::Srgb, src[i]);
-                break;
-        }
+        for (size_t i = 0; i < n; ++i) dst[i] = toneMap(t, src[i]);
     }
     return out;
 }

@@ -1,8 +1,8 @@
-// In-memory PNG encoding (libpng) and base64 for data URIs in the bench report.
-#include <kestrel/Error.h>
-#include <png.h>
+// PNGs of linear images for the bench report's data URIs (through the shared encoder,
+// display/Png.h) and base64.
+#include "display/Png.h"
 
-#include <cmath>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -10,46 +10,19 @@
 #include "eval/BenchReport.h"
 
 namespace kestrel::eval {
-namespace {
-
-void appendBytes(png_structp png, png_bytep data, png_size_t length) {
-    auto* out = static_cast<std::vector<unsigned char>*>(png_get_io_ptr(png));
-    out->insert(out->end(), data, data + length);
-}
-
-}  // namespace
 
 std::vector<unsigned char> encodePng(const ImageView& rgb, ToneMap toneMapKind) {
     Image safe = sanitizedRgb(rgb, nullptr, "PNG image");
-    Image display = toneMapped(safe, toneMapKind);
-    const int w = display.width(), h = display.height();
-    std::vector<unsigned char> out;
-    if (w <= 0 || h <= 0) throw Error("cannot encode an empty image as PNG");
-    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
-    png_infop info = png ? png_create_info_struct(png) : nullptr;
-    if (!info) {
-        png_destroy_write_struct(&png, nullptr);
-        throw Error("libpng: out of memory");
-    }
-    std::vector<unsigned char> row(size_t(w) * 3);
-    if (setjmp(png_jmpbuf(png))) {
-        png_destroy_write_struct(&png, &info);
-        throw Error("libpng: encoding failed");
-    }
-    png_set_write_fn(png, &out, appendBytes, nullptr);
-    png_set_IHDR(png, info, png_uint_32(w), png_uint_32(h), 8, PNG_COLOR_TYPE_RGB,
-                 PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
-    png_write_info(png, info);
-    for (int y = 0; y < h; ++y) {
+    const Image shown = toneMapped(safe, toneMapKind);
+    const int w = shown.width(), h = shown.height();
+    std::vector<uint8_t> pixels(size_t(w) * size_t(h) * 3);
+    for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x)
             for (int c = 0; c < 3; ++c)
-                row[size_t(x) * 3 + c] =
-                    (unsigned char)std::lround(255.0f * display.at(c, x, y));  // in [0, 1]
-        png_write_row(png, row.data());
-    }
-    png_write_end(png, nullptr);
-    png_destroy_write_struct(&png, &info);
-    return out;
+                pixels[(size_t(y) * size_t(w) + size_t(x)) * 3 + size_t(c)] =
+                    display::to8(shown.at(c, x, y));
+    // No sRGB chunk: the metrics' displays are gamma 2.2 or linear as often as sRGB.
+    return display::encodePng(pixels.data(), w, h, /*srgb=*/false);
 }
 
 std::string base64(const std::vector<unsigned char>& bytes) {

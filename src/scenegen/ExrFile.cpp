@@ -48,7 +48,7 @@ void writeExr(const fs::path& path, int width, int height, const std::vector<Exr
     for (const auto& a : attributes.matrices) {
         Imath::M44f m;
         for (int r = 0; r < 4; ++r)
-            for (int c = 0; c < 4; ++c) m[r][c] = a.m[size_t(r * 4 + c)];
+            for (int c = 0; c < 4; ++c) m[r][c] = a.m.m[size_t(r)][size_t(c)];
         header.insert(a.name, Imf::M44fAttribute(m));
     }
     Imf::FrameBuffer fb;

@@ -15,7 +15,7 @@ struct ExrChannel {
 };
 struct ExrMatrixAttribute {
     std::string name;
-    Mat4 m;  // stored so that M44f x[r][c] == m[r * 4 + c]
+    Mat4 m;  // stored so that M44f x[r][c] == m.m[r][c]
 };
 struct ExrAttributes {
     std::vector<std::pair<std::string, std::string>> strings;

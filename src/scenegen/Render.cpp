@@ -73,9 +73,9 @@ FrameAovs renderFrame(const SceneOptions& opt, int frame) {
                 // Background (black sky): motion of directions at infinity, from the rotations.
                 float pw;
                 const V3 q = xformPoint(prev.camera.worldToPixel, d, &pw);
-                const float qw = pw - prev.camera.worldToPixel[15];  // direction: w component 0
-                const V3 qd = q - V3{prev.camera.worldToPixel[3], prev.camera.worldToPixel[7],
-                                     prev.camera.worldToPixel[11]};
+                const auto& w2p = prev.camera.worldToPixel.m;
+                const float qw = pw - w2p[3][3];  // direction: w component 0
+                const V3 qd = q - V3{w2p[0][3], w2p[1][3], w2p[2][3]};
                 if (qw > 1e-6f) {
                     f.motion[0][k] = qd.x / qw - (float(i) + 0.5f);
                     f.motion[1][k] = qd.y / qw - (float(j) + 0.5f);

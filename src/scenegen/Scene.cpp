@@ -46,7 +46,7 @@ Camera makeCamera(V3 pos, V3 target, int width, int height) {
     const float w = float(width), h = float(height);
     // ndc -> pixels: px = (ndc.x + 1) / 2 * W, py = (1 - ndc.y) / 2 * H (y down).
     const Mat4 viewport = {w / 2, 0, 0, w / 2, 0, -h / 2, 0, h / 2, 0, 0, 1, 0, 0, 0, 0, 1};
-    c.worldToPixel = mul(viewport, mul(c.projection, c.worldToCamera));
+    c.worldToPixel = viewport * (c.projection * c.worldToCamera);
     return c;
 }
 
@@ -149,7 +149,7 @@ SceneState makeScene(const SceneOptions& opt, int frame) {
         s.camera = makeCamera(pos, target, opt.width, opt.height);
     }
 
-    for (auto& m : s.objectToWorld) m = identity4();
+    for (auto& m : s.objectToWorld) m = Mat4::identity();
     s.objectToWorld[kTallBox] = rigidY(0.35f, {-1.1f, 0.9f, -3.3f});
     s.objectToWorld[kShortBox] = rigidY(-0.3f, {1.0f, 0.35f, -2.4f});
     s.objectToWorld[kBigSphere] = rigidY(0.f, {0.1f, 0.5f, -3.7f});
@@ -178,7 +178,7 @@ SceneState makeScene(const SceneOptions& opt, int frame) {
 
     auto translation = [&](int id) {
         const Mat4& m = s.objectToWorld[id];
-        return V3{m[3], m[7], m[11]};
+        return V3{m.m[0][3], m.m[1][3], m.m[2][3]};
     };
     s.spheres[0] = {translation(kBigSphere), 0.5f, kBigSphere};
     s.spheres[1] = {translation(kMovingSphere), 0.3f, kMovingSphere};

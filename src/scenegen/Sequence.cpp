@@ -101,7 +101,8 @@ public:
         if (keep("position")) {
             // The homework stores the camera position on background pixels.
             std::array<std::vector<float>, 3> pos = f.position;
-            const float cam[3] = {f.cameraToWorld[3], f.cameraToWorld[7], f.cameraToWorld[11]};
+            const auto& c2w = f.cameraToWorld.m;
+            const float cam[3] = {c2w[0][3], c2w[1][3], c2w[2][3]};
             for (size_t k = 0; k < n; ++k)
                 if (f.objectId[k] < 0)
                     for (int c = 0; c < 3; ++c) pos[size_t(c)][k] = cam[c];

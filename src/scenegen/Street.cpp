@@ -160,7 +160,7 @@ StreetState makeStreet(const SceneOptions& opt, int frame) {
     s.lampRadius = 0.2f;
     s.spheres.push_back({s.lampCenter, s.lampRadius, kLampHead});
 
-    for (auto& m : s.objectToWorld) m = identity4();
+    for (auto& m : s.objectToWorld) m = Mat4::identity();
     // Objects other than the walls and the ground are placed by a translation (no rotation).
     auto place = [&](int id, V3 t) { s.objectToWorld[id] = rigidY(0.f, t); };
     place(kGoldSphere, s.spheres[0].center);

@@ -234,8 +234,8 @@ std::array<float, 2> sampleMotion(const StreetState& cur, const StreetState& pre
     float pw;
     if (!pr.hit) {
         const V3 q = xformPoint(w2p, pr.d, &pw);
-        const float qw = pw - w2p[15];  // direction: w component 0
-        const V3 qd = q - V3{w2p[3], w2p[7], w2p[11]};
+        const float qw = pw - w2p.m[3][3];  // direction: w component 0
+        const V3 qd = q - V3{w2p.m[0][3], w2p.m[1][3], w2p.m[2][3]};
         if (qw <= 1e-6f) return {0.f, 0.f};
         return {qd.x / qw - pr.px, qd.y / qw - pr.py};
     }

@@ -47,43 +47,33 @@ inline float comp(V3 a, int i) {
     return i == 0 ? a.x : (i == 1 ? a.y : a.z);
 }
 
-inline Mat4 identity4() {
-    return {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
-}
-inline Mat4 mul(const Mat4& a, const Mat4& b) {
-    Mat4 r{};
-    for (int i = 0; i < 4; ++i)
-        for (int j = 0; j < 4; ++j) {
-            float s = 0;
-            for (int k = 0; k < 4; ++k) s += a[i * 4 + k] * b[k * 4 + j];
-            r[i * 4 + j] = s;
-        }
-    return r;
-}
 /// p' = M (p, 1): returns xyz (no divide) and w.
 inline V3 xformPoint(const Mat4& m, V3 p, float* w = nullptr) {
-    if (w) *w = m[12] * p.x + m[13] * p.y + m[14] * p.z + m[15];
-    return {m[0] * p.x + m[1] * p.y + m[2] * p.z + m[3],
-            m[4] * p.x + m[5] * p.y + m[6] * p.z + m[7],
-            m[8] * p.x + m[9] * p.y + m[10] * p.z + m[11]};
+    const Vec4 q = m.transformPoint({p.x, p.y, p.z});
+    if (w) *w = q.w;
+    return {q.x, q.y, q.z};
 }
+/// The 3x3 part of M times d (Mat4 * (d, 0) would add the translation's 0 products).
 inline V3 xformDir(const Mat4& m, V3 d) {
-    return {m[0] * d.x + m[1] * d.y + m[2] * d.z, m[4] * d.x + m[5] * d.y + m[6] * d.z,
-            m[8] * d.x + m[9] * d.y + m[10] * d.z};
+    const auto& a = m.m;
+    return {a[0][0] * d.x + a[0][1] * d.y + a[0][2] * d.z,
+            a[1][0] * d.x + a[1][1] * d.y + a[1][2] * d.z,
+            a[2][0] * d.x + a[2][1] * d.y + a[2][2] * d.z};
 }
 /// Rigid transform: rotation by `angle` (radians) about +Y, then translation.
 inline Mat4 rigidY(float angle, V3 t) {
     const float c = std::cos(angle), s = std::sin(angle);
     return {c, 0, s, t.x, 0, 1, 0, t.y, -s, 0, c, t.z, 0, 0, 0, 1};
 }
-/// Inverse of a rigid transform (orthonormal rotation + translation).
+/// Inverse of a rigid transform (orthonormal rotation + translation): exact transpose, where
+/// kestrel::inverse would eliminate in double and round.
 inline Mat4 rigidInverse(const Mat4& m) {
     Mat4 r{};
     for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) r[i * 4 + j] = m[j * 4 + i];
+        for (int j = 0; j < 3; ++j) r.m[i][j] = m.m[j][i];
     for (int i = 0; i < 3; ++i)
-        r[i * 4 + 3] = -(r[i * 4 + 0] * m[3] + r[i * 4 + 1] * m[7] + r[i * 4 + 2] * m[11]);
-    r[15] = 1;
+        r.m[i][3] = -(r.m[i][0] * m.m[0][3] + r.m[i][1] * m.m[1][3] + r.m[i][2] * m.m[2][3]);
+    r.m[3][3] = 1;
     return r;
 }
 

@@ -81,13 +81,13 @@ TEST(SceneGenFiles, CanonicalLayoutHasEveryChannelAndTheMatrices) {
     const auto* w2p = img.header.findTypedAttribute<Imf::M44fAttribute>("kestrel.worldToPixel");
     ASSERT_NE(w2p, nullptr);
     for (int r = 0; r < 4; ++r)
-        for (int c = 0; c < 4; ++c) EXPECT_EQ(w2p->value()[r][c], f.worldToPixel[r * 4 + c]);
+        for (int c = 0; c < 4; ++c) EXPECT_EQ(w2p->value()[r][c], f.worldToPixel.m[r][c]);
     ASSERT_NE(img.header.findTypedAttribute<Imf::M44fAttribute>("kestrel.worldToCamera"), nullptr);
     for (int id = 0; id < objectCount(); ++id) {
         const auto* m = img.header.findTypedAttribute<Imf::M44fAttribute>("kestrel.objectToWorld." +
                                                                           std::to_string(id));
         ASSERT_NE(m, nullptr) << id;
-        EXPECT_EQ(m->value()[0][3], f.objectToWorld.at(id)[3]);
+        EXPECT_EQ(m->value()[0][3], f.objectToWorld.at(id).m[0][3]);
     }
 
     const ExrImage ref = readExr(dir / "ref/frame_0002.exr");
@@ -205,7 +205,7 @@ TEST(SceneGenFiles, Games202LayoutMatchesTheHomeworkFiles) {
     ASSERT_EQ(bytes.size(), 4u + size_t(count + 2) * 64u);
     auto matrix = [&](int index) {
         Mat4 m;
-        std::memcpy(m.data(), bytes.data() + 4 + size_t(index) * 64, 64);
+        std::memcpy(m.m.data(), bytes.data() + 4 + size_t(index) * 64, 64);
         return m;
     };
     const Mat4 view = matrix(count), screen = matrix(count + 1);
@@ -224,10 +224,9 @@ TEST(SceneGenFiles, Games202LayoutMatchesTheHomeworkFiles) {
                 EXPECT_EQ(depth.channels.at("Y")[k], 0.f);
                 continue;
             }
-            const float w = screen[12] * x + screen[13] * y + screen[14] * z + screen[15];
-            const float sx = (screen[0] * x + screen[1] * y + screen[2] * z + screen[3]) / w;
-            const float sy = (screen[4] * x + screen[5] * y + screen[6] * z + screen[7]) / w;
-            const float zc = view[8] * x + view[9] * y + view[10] * z + view[11];
+            const kestrel::Vec4 s = screen.transformPoint({x, y, z});
+            const float w = s.w, sx = s.x / w, sy = s.y / w;
+            const float zc = view.transformPoint({x, y, z}).z;
             maxPixelErr =
                 std::max({maxPixelErr, std::fabs(sx - (i + 0.5f)), std::fabs(sy - (j + 0.5f))});
             maxDepthErr = std::max({maxDepthErr, std::fabs(zc - depth.channels.at("Y")[k]),

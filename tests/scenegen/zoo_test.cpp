@@ -51,10 +51,8 @@ std::pair<int, int> runWidth(const FrameAovs& f, int id) {
 
 // Direction at infinity through pixel point (x, y), projected by a worldToPixel matrix.
 std::pair<float, float> projectDirection(const Mat4& m, const float d[3]) {
-    const float px = m[0] * d[0] + m[1] * d[1] + m[2] * d[2];
-    const float py = m[4] * d[0] + m[5] * d[1] + m[6] * d[2];
-    const float pw = m[12] * d[0] + m[13] * d[1] + m[14] * d[2];
-    return {px / pw, py / pw};
+    const kestrel::Vec4 q = m * kestrel::Vec4{d[0], d[1], d[2], 0.f};
+    return {q.x / q.w, q.y / q.w};
 }
 
 }  // namespace
@@ -124,7 +122,7 @@ TEST(SceneZoo, RoomLampSwingsTheLightOverTheSameGeometry) {
     }
     EXPECT_EQ(sameGeometry + onLight, n) << "only the light's own pixels may differ in id";
     const Mat4& m = b.objectToWorld.at(light);
-    EXPECT_NEAR(m[3], lamp.lightSwing * std::sin(0.35f * float(frame - 1)), 1e-5f);
+    EXPECT_NEAR(m.m[0][3], lamp.lightSwing * std::sin(0.35f * float(frame - 1)), 1e-5f);
     // The light moved to +x: the right half of the frame gains light against the left.
     auto rightOverLeft = [&](const std::vector<float>& ref) {
         double left = 0, right = 0;
@@ -194,13 +192,13 @@ TEST(SceneZoo, StreetSkyIsNoiseFreeEnvironmentWithCameraMotion) {
             }
             // The sky's motion is the camera rotation's: the view direction through the pixel
             // centre, projected by the previous frame's camera.
-            const Mat4& c2w = f.cameraToWorld;
-            const float tanY = 1.f / f.projection[5], tanX = 1.f / f.projection[0];
+            const auto& c2w = f.cameraToWorld.m;
+            const float tanY = 1.f / f.projection.m[1][1], tanX = 1.f / f.projection.m[0][0];
             const float cx = ((i + 0.5f) / f.width * 2.f - 1.f) * tanX;
             const float cy = (1.f - (j + 0.5f) / f.height * 2.f) * tanY;
-            const float d[3] = {c2w[0] * cx + c2w[1] * cy - c2w[2],
-                                c2w[4] * cx + c2w[5] * cy - c2w[6],
-                                c2w[8] * cx + c2w[9] * cy - c2w[10]};
+            const float d[3] = {c2w[0][0] * cx + c2w[0][1] * cy - c2w[0][2],
+                                c2w[1][0] * cx + c2w[1][1] * cy - c2w[1][2],
+                                c2w[2][0] * cx + c2w[2][1] * cy - c2w[2][2]};
             const auto [qx, qy] = projectDirection(prev.worldToPixel, d);
             const float mx = f.motion[0][k], my = f.motion[1][k];
             maxMotionErr = std::max(
@@ -357,11 +355,9 @@ TEST(SceneZoo, JitteredGBufferIsOneFilterSamplePerFrame) {
             idChanged += j2.objectId[k] != j3.objectId[k];
             if (j2.objectId[k] < 0) continue;
             // The sample lies inside the 1.5 px footprint around the pixel centre.
-            const Mat4& m = j2.worldToPixel;
-            const float px = j2.position[0][k], py = j2.position[1][k], pz = j2.position[2][k];
-            const float w = m[12] * px + m[13] * py + m[14] * pz + m[15];
-            const float sx = (m[0] * px + m[1] * py + m[2] * pz + m[3]) / w;
-            const float sy = (m[4] * px + m[5] * py + m[6] * pz + m[7]) / w;
+            const kestrel::Vec4 s = j2.worldToPixel.transformPoint(
+                {j2.position[0][k], j2.position[1][k], j2.position[2][k]});
+            const float sx = s.x / s.w, sy = s.y / s.w;
             maxOffset =
                 std::max({maxOffset, std::fabs(sx - (x + 0.5f)), std::fabs(sy - (y + 0.5f))});
             // Its motion is that of the sample (a still scene: none).
@@ -456,7 +452,7 @@ TEST(SceneZoo, RoomCutJumpsAtItsFrame) {
     const FrameAovs after = renderFrame(o, cut + 1);
     auto jump = [](const FrameAovs& a, const FrameAovs& b) {
         float d = 0.f;
-        for (int c : {3, 7, 11}) d += std::fabs(a.cameraToWorld[c] - b.cameraToWorld[c]);
+        for (int r : {0, 1, 2}) d += std::fabs(a.cameraToWorld.m[r][3] - b.cameraToWorld.m[r][3]);
         return d;  // distance moved by the camera (L1)
     };
     EXPECT_GT(jump(before, at), 1.f);

@@ -7,12 +7,6 @@ namespace stability {
 using namespace kestrel;
 
 namespace {
-Mat4 toMat4(const scenegen::Mat4& a) {
-    Mat4 m;
-    for (int r = 0; r < 4; ++r)
-        for (int c = 0; c < 4; ++c) m.m[size_t(r)][size_t(c)] = a[size_t(r * 4 + c)];
-    return m;
-}
 template <size_t N>
 void copyPlanes(const std::array<std::vector<float>, N>& src, Image& dst) {
     for (size_t c = 0; c < N; ++c) std::copy(src[c].begin(), src[c].end(), dst.channel(int(c)));
@@ -35,9 +29,9 @@ Scenario sceneGenScenario(const scenegen::SceneOptions& options) {
         std::copy(a.depth.begin(), a.depth.end(), f["depth"].channel(0));
         std::copy(a.objectId.begin(), a.objectId.end(), f["objectId"].view().ints());
         f.scene.hasCamera = true;
-        f.scene.worldToCamera = toMat4(a.worldToCamera);
-        f.scene.worldToPixel = toMat4(a.worldToPixel);
-        for (const auto& [id, m] : a.objectToWorld) f.scene.objectToWorld[id] = toMat4(m);
+        f.scene.worldToCamera = a.worldToCamera;
+        f.scene.worldToPixel = a.worldToPixel;
+        for (const auto& [id, m] : a.objectToWorld) f.scene.objectToWorld[id] = m;
     };
     return s;
 }

@@ -35,12 +35,6 @@ void expectPlanes(const kestrel::Image& img, const float* const* planes, int cha
             ASSERT_EQ(img.channel(c)[i], planes[c][i])
                 << what << " channel " << c << " pixel " << i;
 }
-
-kestrel::Mat4 toMat(const sg::Mat4& m) {
-    kestrel::Mat4 r;
-    for (int i = 0; i < 16; ++i) r.m[i / 4][i % 4] = m[size_t(i)];
-    return r;
-}
 }  // namespace
 
 TEST(ExrLoaderScenegen, CanonicalSequenceLoadsAsGenerated) {
@@ -77,10 +71,10 @@ TEST(ExrLoaderScenegen, CanonicalSequenceLoadsAsGenerated) {
     for (int i = 0; i < n; ++i)
         ASSERT_EQ(h.out("objectId").view().ints()[i], f.objectId[size_t(i)]);
     ASSERT_TRUE(h.scene.hasCamera);
-    EXPECT_EQ(h.scene.worldToPixel, toMat(f.worldToPixel));
-    EXPECT_EQ(h.scene.worldToCamera, toMat(f.worldToCamera));
+    EXPECT_EQ(h.scene.worldToPixel, f.worldToPixel);
+    EXPECT_EQ(h.scene.worldToCamera, f.worldToCamera);
     ASSERT_EQ(h.scene.objectToWorld.size(), f.objectToWorld.size());
-    for (const auto& [id, m] : f.objectToWorld) EXPECT_EQ(h.scene.objectToWorld.at(id), toMat(m));
+    for (const auto& [id, m] : f.objectToWorld) EXPECT_EQ(h.scene.objectToWorld.at(id), m);
 }
 
 TEST(ExrLoaderScenegen, Games202SequenceLoadsAsGenerated) {
@@ -107,8 +101,7 @@ TEST(ExrLoaderScenegen, Games202SequenceLoadsAsGenerated) {
     // Converted to OpenGL (looks down -z): the same view matrix as the canonical files carry.
     for (int r = 0; r < 4; ++r)
         for (int c = 0; c < 4; ++c)
-            EXPECT_NEAR(h.scene.worldToCamera.m[r][c], toMat(f.worldToCamera).m[r][c], 1e-5f)
-                << r << c;
+            EXPECT_NEAR(h.scene.worldToCamera.m[r][c], f.worldToCamera.m[r][c], 1e-5f) << r << c;
 }
 
 // Point-sampled or anti-aliased, decided from the data (the files state no pixel filter): the

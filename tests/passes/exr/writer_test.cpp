@@ -164,8 +164,7 @@ TEST(ExrWriter, FailedWriteSaysTheSystemsReason) {
         kestrel::exr::writeZipScanlines("/dev/full", header, {r.data()}, 1, 4);
         FAIL() << "no error writing to /dev/full";
     } catch (const std::exception& e) {
-        EXPECT_NE(std::string(e.what()).find(std::strerror(ENOSPC)), std::string::npos)
-            << e.what();
+        EXPECT_NE(std::string(e.what()).find(std::strerror(ENOSPC)), std::string::npos) << e.what();
     }
 }
 
@@ -210,9 +209,9 @@ TEST(ExrWriter, PngPreviewWritten) {
     EXPECT_EQ(b[23], 2u);  // height = 2
     EXPECT_EQ(listing(tmp.path), (std::vector<std::string>{"out.0003.exr", "prev.0003.png"}));
     // ACES fit of 0.36 then sRGB: the documented curve, not a clamp.
-    EXPECT_NEAR(kestrel::exr::toneMap(0.36f, kestrel::exr::ToneMap::Aces),
+    EXPECT_NEAR(kestrel::display::toneMap(0.36f, kestrel::display::ToneCurve::Aces),
                 0.36f * (2.51f * 0.36f + 0.03f) / (0.36f * (2.43f * 0.36f + 0.59f) + 0.14f), 1e-6f);
-    EXPECT_EQ(kestrel::exr::toneMap(std::nanf(""), kestrel::exr::ToneMap::Reinhard), 0.f);
+    EXPECT_EQ(kestrel::display::toneMap(std::nanf(""), kestrel::display::ToneCurve::Reinhard), 0.f);
 }
 
 TEST(ExrWriter, IdsAsFloatAndNothingWrittenDuringWarmup) {

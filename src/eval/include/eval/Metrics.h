@@ -35,6 +35,8 @@
 
 namespace kestrel::eval {
 
+/// The metrics' display transforms, by name (--tonemap): combinations of the shared tone curves
+/// and encodings (display/ToneMap.h), not another implementation of them.
 enum class ToneMap {
     /// (x / (1 + x))^(1/2.2): HDR highlights stay distinguishable, display gamma (default)
     Reinhard,

@@ -4,8 +4,10 @@
 // as EXR sequences (docs/canonical-layout.md). zooScenes() names a set of configurations that
 // together cover what real content has (sky, fine texture, glossy and mirror surfaces, emitters,
 // thin geometry, disocclusion, fireflies, a camera cut, a jittered pixel filter). Deterministic:
-// the output depends only on the options, never on the thread count. Independent of the Kestrel
-// framework (only OpenEXR and threads).
+// the output depends only on the options, never on the thread count. Of the Kestrel framework it
+// uses only the matrix type (kestrel/Math.h).
+#include <kestrel/Math.h>
+
 #include <array>
 #include <cstdint>
 #include <filesystem>
@@ -17,9 +19,9 @@
 
 namespace kestrel::scenegen {
 
-/// Row-major 4x4 matrix m[row * 4 + col], column-vector convention p' = M (x, y, z, 1)^T
-/// (same as kestrel::Mat4: copy element (r, c) to Mat4::m[r][c]).
-using Mat4 = std::array<float, 16>;
+/// The engine's matrix (row-major m[row][col], column-vector convention p' = M (x, y, z, 1)^T):
+/// the scenes' cameras and objects go to the loader's FrameContext as they are.
+using Mat4 = kestrel::Mat4;
 
 struct SceneOptions {
     /// Room: the interior (default; its output never changes). Street: outdoor, sky + sun, brick
