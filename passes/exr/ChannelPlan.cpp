@@ -81,6 +81,10 @@ const std::vector<OutputSpec>& loaderOutputs() {
         {"reflection", Format::Float, 0.f,
          "1 where the pixel's features describe what a near-specular surface shows (a mirror, "
          "a polished floor: Cycles' denoising features pass such bounces), 0 elsewhere"},
+        {"pathLength", Format::Float, 0.f,
+         "length of the camera path through near-specular bounces to the surface the features "
+         "describe (Cycles' Denoising Depth), 0 on the background; where reflection is 1 it places "
+         "the reflected point's virtual image on the camera ray (VirtualMotion)"},
     };
     return outputs;
 }
@@ -392,8 +396,19 @@ Plan planBlender(const ChannelSets& files, const std::string& L) {
                                    " (both: where they differ, the features passed a mirror)");
     // Planar depth, 1e10 on the background already; else the denoiser's ray-path length, 0 on
     // the background: a depth guide of its own kind (not planar), consistent frame to frame.
-    if (b.setFirst("depth", {P("Depth"), P("Denoising Depth")}, "Data > Z") == 1)
-        b.plan.find("depth")->zeroIsBackground = true;
+    const int depthFrom = b.setFirst("depth", {P("Depth"), P("Denoising Depth")}, "Data > Z");
+    if (depthFrom == 1) b.plan.find("depth")->zeroIsBackground = true;
+    // Denoising Depth is a path length through the near-specular bounces the features pass
+    // (data/README.md): where reflection is set, the distance along the camera ray to the
+    // reflected surface's virtual image (NRD ReBLUR's virtual motion). Only beside a planar
+    // Depth: where depth itself reads Denoising Depth it would repeat it.
+    if (depthFrom == 0)
+        b.setFirst("pathLength", {P("Denoising Depth")}, "Data > Denoising Data");
+    else
+        b.absent("pathLength", "planar " + P("Depth") +
+                                   ".Z beside Denoising Depth (depth reads the path length "
+                                   "itself, or neither exists): enable View Layer > Passes > "
+                                   "Data > Z");
     b.setFirst("position", {P("Position")}, "Data > Position");
     b.setFirst("motion", {P("Vector")}, "Data > Vector");
     b.plan.find("motion")->scale[1] = -1.f;  // Blender's Vector y points up the image
@@ -440,8 +455,9 @@ Plan planGames202(const ChannelSets& files) {
     // Depth is 0 on the background; the ID buffer (-1 there) marks it (data/README.md).
     if (!depth.absent && resolveGroup(files, "ID", "Y", 1))
         depth.backgroundMask = ChannelRef{"ID", "Y"};
-    for (const char* o : {"albedo", "emission", "direct", "indirect", "diffuse", "diffuseAlbedo",
-                          "specular", "specularAlbedo", "motion", "reflection", "alpha"})
+    for (const char* o :
+         {"albedo", "emission", "direct", "indirect", "diffuse", "diffuseAlbedo", "specular",
+          "specularAlbedo", "motion", "reflection", "pathLength", "alpha"})
         b.absent(o,
                  std::string("buffer for ") + o + " (it has beauty, normal, position, depth, ID)");
     return b.plan;

@@ -205,7 +205,11 @@ const std::vector<std::pair<std::string, Format>>& sourcePorts() {
         {"objectId", Format::Int32},
         {"jitteredAlbedo", Format::Float3},
         {"jitteredDiffuseAlbedo", Format::Float3},
-        {"jitteredSpecularAlbedo", Format::Float3}};
+        {"jitteredSpecularAlbedo", Format::Float3},
+        // As the ExrLoader's optional outputs graphs/svgf.json reads (VirtualMotion): absent
+        // unless a scenario provides them.
+        {"reflection", Format::Float},
+        {"pathLength", Format::Float}};
     return ports;
 }
 

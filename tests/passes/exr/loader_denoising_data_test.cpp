@@ -4,9 +4,11 @@
 // Depth a ray-path length with 0 on the background).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <vector>
 
 #include "ExrLoader.h"
 #include "exr_test_util.h"
@@ -334,4 +336,62 @@ TEST(ExrLoaderDenoisingData, ReflectionMarksWhereTheFeaturesPassAMirror) {
         }
     EXPECT_GT(marked, 2000);  // at least the ~2,000 surface pixels without a Denoising Normal
     EXPECT_LT(marked, 320 * 180 / 10);
+}
+
+// pathLength: Cycles' Denoising Depth as written (0 on the background), beside a planar Depth
+// pass; where depth reads Denoising Depth itself (no Depth pass) pathLength is absent, saying
+// which pass would give it, so the compiler leaves out VirtualMotion.
+TEST(ExrLoaderDenoisingData, PathLengthIsDenoisingDepthBesideAPlanarDepth) {
+    TempDir tmp("path-length");
+    Channels ch;
+    ch["ViewLayer.Depth.Z"] = {5.f, 1e10f};
+    ch["ViewLayer.Denoising Depth.Z"] = {7.5f, 0.f};  // pixel 1 is background
+    auto h = loaderOn(tmp, ch);
+    RecordingResolve rc(1);
+    h.pass().resolve(rc);
+    EXPECT_EQ(rc.absent.count("pathLength"), 0u);
+    h.useOutputs({"depth", "pathLength"});
+    h.ctx.frameNumber = 1;
+    h.run();
+    EXPECT_EQ(h.out("depth").at(0, 0, 0), 5.f);
+    EXPECT_EQ(h.out("pathLength").at(0, 0, 0), 7.5f);
+    EXPECT_EQ(h.out("pathLength").at(0, 1, 0), 0.f);  // background stays 0, not 1e10
+}
+
+TEST(ExrLoaderDenoisingData, PathLengthAbsentWhereDepthIsThePathLength) {
+    for (bool withDenoisingDepth : {true, false}) {
+        TempDir tmp("no-path-length");
+        Channels ch;
+        if (withDenoisingDepth) ch["ViewLayer.Denoising Depth.Z"] = {7.5f, 0.f};
+        auto h = loaderOn(tmp, ch);
+        RecordingResolve rc(1);
+        h.pass().resolve(rc);
+        SCOPED_TRACE(withDenoisingDepth ? "Denoising Depth only" : "neither depth");
+        ASSERT_EQ(rc.absent.count("pathLength"), 1u);
+        EXPECT_NE(rc.absent["pathLength"].find("enable View Layer > Passes > Data > Z"),
+                  std::string::npos);
+    }
+}
+
+// On the showroom's mirror panel Denoising Depth describes the reflected surface: there the
+// path length is longer than the planar depth (README: ~1.3x at the median), so pathLength is
+// no copy of depth where reflection is set.
+TEST(ExrLoaderDenoisingData, PathLengthOnTheShowroomMirrorIsLongerThanDepth) {
+    const std::string dir = sharedData("blender-showroom");
+    if (dir.empty() || !std::filesystem::exists(dir + "/noisy/frame_0005.exr"))
+        GTEST_SKIP() << "../shared/data/blender-showroom not present";
+    auto h = PassHarness::make<ExrLoader>({1, 1}, {{"path", dir + "/noisy/frame_####.exr"}});
+    h.useOutputs({"depth", "pathLength", "reflection"});
+    h.ctx.frameNumber = 5;
+    h.run();
+    std::vector<float> ratio;
+    for (int y = 0; y < 180; ++y)
+        for (int x = 0; x < 320; ++x) {
+            const float d = h.out("depth").at(0, x, y), l = h.out("pathLength").at(0, x, y);
+            if (h.out("reflection").at(0, x, y) == 1.f && d > 0.f && d < 1e9f && l > 0.f)
+                ratio.push_back(l / d);
+        }
+    ASSERT_GT(ratio.size(), 1000u);
+    std::nth_element(ratio.begin(), ratio.begin() + ratio.size() / 2, ratio.end());
+    EXPECT_GT(ratio[ratio.size() / 2], 1.1f);
 }

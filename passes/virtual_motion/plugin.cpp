@@ -1,0 +1,7 @@
+#include <kestrel/Plugin.h>
+
+#include "VirtualMotionPass.h"
+
+KESTREL_PLUGIN(r) {
+    r.add<VirtualMotionPass>();
+}
