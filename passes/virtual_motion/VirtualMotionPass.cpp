@@ -170,8 +170,9 @@ void VirtualMotionPass::execute(FrameContext& ctx, PassIO& io) {
                             if (consistent && prevLength) {
                                 // A planar mirror's virtual image stays where it was: its
                                 // distance from last frame's eye is last frame's path length
-                                // there. A curved mirror's moves (it fails: the surface motion
-                                // is kept, issue 39: 0.0117 vs 0.0083 on a steel sphere).
+                                // there. A curved mirror's moves: it fails, and the surface
+                                // motion is kept (without this test blender-street's curved
+                                // chrome lost reflection detail: docs/benchmarks.md section 7).
                                 const auto& E = prevCameraToWorld->m;
                                 const double ex = p[0] - E[0][3], ey = p[1] - E[1][3],
                                              ez = p[2] - E[2][3];
