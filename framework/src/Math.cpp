@@ -1,5 +1,7 @@
 #include "kestrel/Math.h"
 
+#include <cmath>
+
 namespace kestrel {
 
 std::optional<Mat4> inverse(const Mat4& a) {
@@ -26,6 +28,22 @@ std::optional<Mat4> inverse(const Mat4& a) {
     for (int i = 0; i < 4; ++i)
         for (int j = 0; j < 4; ++j) r.m[i][j] = float(m[i][j + 4]);
     return r;
+}
+
+bool pointOnPixelRay(const Mat4& cameraToPixel, double px, double py, double zc, double& x,
+                     double& y) {
+    const auto& A = cameraToPixel.m;
+    double a[4], b[4];
+    for (int k = 0; k < 4; ++k) {
+        a[k] = A[0][k] - px * A[3][k];
+        b[k] = A[1][k] - py * A[3][k];
+    }
+    const double det = a[0] * b[1] - a[1] * b[0];
+    if (!(std::fabs(det) > 1e-12)) return false;
+    const double ra = -(a[2] * zc + a[3]), rb = -(b[2] * zc + b[3]);
+    x = (ra * b[1] - a[1] * rb) / det;
+    y = (a[0] * rb - ra * b[0]) / det;
+    return std::isfinite(x) && std::isfinite(y);
 }
 
 }  // namespace kestrel

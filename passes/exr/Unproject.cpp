@@ -6,23 +6,6 @@ namespace kestrel::exr {
 
 namespace {
 
-/// The camera-space (x, y) on pixel (px, py)'s ray at camera z = zc: (row0 - px row3) . c = 0
-/// and (row1 - py row3) . c = 0 for c = (x, y, zc, 1). False where the camera cannot invert it.
-bool onRay(const Mat4& cameraToPixel, double px, double py, double zc, double& x, double& y) {
-    const auto& A = cameraToPixel.m;
-    double a[4], b[4];
-    for (int k = 0; k < 4; ++k) {
-        a[k] = A[0][k] - px * A[3][k];
-        b[k] = A[1][k] - py * A[3][k];
-    }
-    const double det = a[0] * b[1] - a[1] * b[0];
-    if (!(std::fabs(det) > 1e-12)) return false;
-    const double ra = -(a[2] * zc + a[3]), rb = -(b[2] * zc + b[3]);
-    x = (ra * b[1] - a[1] * rb) / det;
-    y = (a[0] * rb - ra * b[0]) / det;
-    return std::isfinite(x) && std::isfinite(y);
-}
-
 bool isBackground(double d) {
     return !(d > 0.0) || d >= 1e9;
 }
@@ -43,7 +26,7 @@ void unprojectRows(const Mat4& cameraToPixel, const Mat4& cameraToWorld, const f
             // Planar depth: the ray's point at z = -d. A ray length (a perspective camera, rays
             // from the eye): the planar-depth-1 point scaled to that length.
             double xc, yc, zc = rayLength ? -1.0 : -d;
-            if (!onRay(cameraToPixel, px, py, zc, xc, yc)) continue;
+            if (!pointOnPixelRay(cameraToPixel, px, py, zc, xc, yc)) continue;
             if (rayLength) {
                 const double s = d / std::sqrt(xc * xc + yc * yc + 1.0);
                 xc *= s, yc *= s, zc = -s;
@@ -120,7 +103,7 @@ void skyMotionRows(const Mat4& cameraToPixel, const Mat4& cameraToWorld,
             if (!isBackground(depth[i])) continue;
             const double px = x + 0.5, py = y + 0.5;
             double xc, yc;
-            if (!onRay(cameraToPixel, px, py, -1.0, xc, yc)) continue;
+            if (!pointOnPixelRay(cameraToPixel, px, py, -1.0, xc, yc)) continue;
             const double c[3] = {xc, yc, -1.0};
             double dir[3] = {0, 0, 0};  // the ray's world direction: rotation only
             for (int r = 0; r < 3; ++r)

@@ -66,24 +66,6 @@ void VirtualMotionPass::resolve(ResolveContext& rc) {
 
 namespace {
 
-/// The camera-space (x, y) on pixel (px, py)'s ray at camera z = -1: (row0 - px row3) . c = 0
-/// and (row1 - py row3) . c = 0 for c = (x, y, -1, 1) (as passes/exr/Unproject.cpp). False
-/// where the camera cannot invert it.
-bool onRay(const Mat4& cameraToPixel, double px, double py, double& x, double& y) {
-    const auto& A = cameraToPixel.m;
-    double a[4], b[4];
-    for (int k = 0; k < 4; ++k) {
-        a[k] = A[0][k] - px * A[3][k];
-        b[k] = A[1][k] - py * A[3][k];
-    }
-    const double det = a[0] * b[1] - a[1] * b[0];
-    if (!(std::fabs(det) > 1e-12)) return false;
-    const double ra = a[2] - a[3], rb = b[2] - b[3];  // -(a . (0, 0, -1, 1))
-    x = (ra * b[1] - a[1] * rb) / det;
-    y = (a[0] * rb - ra * b[0]) / det;
-    return std::isfinite(x) && std::isfinite(y);
-}
-
 bool usable(float v) {
     return std::isfinite(v) && v > 0.f;
 }
@@ -148,7 +130,7 @@ void VirtualMotionPass::execute(FrameContext& ctx, PassIO& io) {
                 if (virtualMotion && refl[x] > 0.5f && usable(L)) {
                     const double px = x + 0.5, py = y + 0.5;
                     double cx, cy;
-                    if (onRay(cameraToPixel, px, py, cx, cy)) {
+                    if (pointOnPixelRay(cameraToPixel, px, py, -1.0, cx, cy)) {
                         // The virtual point: the camera ray's unit direction times the path
                         // length, from the eye (the camera-space origin).
                         const double s = double(L) / std::sqrt(cx * cx + cy * cy + 1.0);

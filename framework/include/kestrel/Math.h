@@ -45,4 +45,10 @@ struct Mat4 {
 /// Inverse by cofactors in double precision; nullopt when singular.
 std::optional<Mat4> inverse(const Mat4& a);
 
+/// The camera-space (x, y) where pixel position (px, py)'s ray meets the plane z = zc (camera
+/// space; the camera looks down -Z): solves (row0 - px row3) . c = 0 and (row1 - py row3) . c = 0
+/// for c = (x, y, zc, 1), in double precision. False where the camera cannot invert it.
+bool pointOnPixelRay(const Mat4& cameraToPixel, double px, double py, double zc, double& x,
+                     double& y);
+
 }  // namespace kestrel
