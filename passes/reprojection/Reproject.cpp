@@ -8,6 +8,7 @@
 // CPU's best target.
 #include "Reproject.h"
 
+#include <denoise/TapsMask.h>
 #include <kestrel/PixelMath.h>
 
 #include <algorithm>
@@ -269,6 +270,11 @@ Sources sourcesOf(PassIO& io, const ReprojectionPass::Declaration& dc,
     S.nThr2 = settings.normalThreshold * settings.normalThreshold;
     S.catmullRom = settings.catmullRom && colorValid;
     S.shared = io.has(dc.sharedTaps) ? io.input(dc.sharedTaps).ints() : nullptr;
+    // A pixel whose motion was moved after its taps were tested (VirtualMotion): this frame's
+    // taps are tested here (the shared ones are the same tests' outcomes everywhere else).
+    if (S.shared && std::find(S.shared, S.shared + size_t(w) * size_t(h), taps::kUntested) !=
+                        S.shared + size_t(w) * size_t(h))
+        S.shared = nullptr;
     return S;
 }
 

@@ -1,5 +1,7 @@
 #include "VirtualMotionPass.h"
 
+#include <denoise/TapsMask.h>
+
 #include <algorithm>
 #include <cmath>
 #include <optional>
@@ -23,16 +25,18 @@ VirtualMotionPass::Declaration::Declaration()
                                   "last frame's pathLength: the virtual image is kept only "
                                   "where it lies at last frame's path length (a planar mirror)");
     taps = optionalInput("taps", Format::Int32,
-                         "the surface motion's Reprojection taps, passed on as `taps` where this "
-                         "pass is left out (the motion is then the same)");
+                         "the surface motion's Reprojection taps, passed on as `taps`");
     // pointwise on motion: each pixel's motion is read before it is written
     motionOut = output("motion", Format::Float2,
                        "the virtual motion where reflection > 0.5 and it is consistent, else the "
                        "input motion",
                        &motion);
+    // pointwise on taps, as motion
     tapsOut = output("taps", Format::Int32,
-                     "`taps` where the pass is left out; absent where it changes the motion (a "
-                     "Reprojection fed this motion must run its own consistency tests)");
+                     "`taps`, with the pixels whose motion this pass moved marked untested "
+                     "(denoise/TapsMask.h: a Reprojection fed this motion runs its own "
+                     "consistency tests on a frame with any)",
+                     &taps);
     param("tolerance", &Params::tolerance, 0.0, 1.0,
           "largest relative difference between the virtual point's distance from last frame's "
           "camera and last frame's path length where it projects (0 keeps the surface motion "
@@ -47,9 +51,7 @@ const VirtualMotionPass::Declaration& VirtualMotionPass::declaration() {
 void VirtualMotionPass::resolve(ResolveContext& rc) {
     const Declaration& d = declaration();
     if (rc.isBound(d.reflection) && rc.isBound(d.pathLength)) {
-        rc.setAbsent(d.tapsOut,
-                     "the virtual motion differs from the surface motion on reflections: the "
-                     "surface motion's consistency tests do not hold for it");
+        if (!rc.isBound(d.taps)) rc.setAbsent(d.tapsOut, "no taps given");
         rc.note("virtual motion where reflection is set");
         return;
     }
@@ -118,14 +120,20 @@ void VirtualMotionPass::execute(FrameContext& ctx, PassIO& io) {
     const Mat4 prevWorldToPixel =
         virtualMotion ? ctx.previousScene->worldToPixel : Mat4::identity();
     const float tol = p_.tolerance;
+    const bool passTaps = io.has(d.tapsOut);
     ctx.parallelRows(h, [&](int y0, int y1) {
         for (int y = y0; y < y1; ++y) {
             const float *mx = motion.row(0, y), *my = motion.row(1, y);
             const float *refl = reflection.row(0, y), *len = pathLength.row(0, y);
             float *ox = out.row(0, y), *oy = out.row(1, y);
+            const int32_t* tapsIn =
+                passTaps ? io.input(d.taps).ints() + size_t(y) * size_t(w) : nullptr;
+            int32_t* tapsOut =
+                passTaps ? io.output(d.tapsOut).ints() + size_t(y) * size_t(w) : nullptr;
             for (int x = 0; x < w; ++x) {
                 const float sx = mx[x], sy = my[x];  // read before a write in place
                 float vx = sx, vy = sy;
+                bool moved = false;
                 const float L = len[x];
                 if (virtualMotion && refl[x] > 0.5f && usable(L)) {
                     const double px = x + 0.5, py = y + 0.5;
@@ -164,13 +172,15 @@ void VirtualMotionPass::execute(FrameContext& ctx, PassIO& io) {
                             }
                             if (consistent) {
                                 const float dx = float(qx - px), dy = float(qy - py);
-                                if (std::isfinite(dx) && std::isfinite(dy)) vx = dx, vy = dy;
+                                if (std::isfinite(dx) && std::isfinite(dy))
+                                    vx = dx, vy = dy, moved = true;
                             }
                         }
                     }
                 }
                 ox[x] = vx;
                 oy[x] = vy;
+                if (tapsOut) tapsOut[x] = moved ? taps::kUntested : tapsIn[x];
             }
         }
     });

@@ -3,6 +3,7 @@
 // threads, on every compiled SIMD target this CPU supports (without FMA, SSE4 and the baseline,
 // the pass takes its per-pixel path everywhere). Tolerance: exact (0 ulp, bitwise identical
 // floats including the sign of zero).
+#include <denoise/TapsMask.h>
 #include <gtest/gtest.h>
 #include <sys/mman.h>
 #include <unistd.h>
@@ -156,6 +157,34 @@ void expectEquivalent(const Frames& f, const Binding& b, const reprojref::Params
     for (const char* port : {"color", "moments", "historyLength", "resampleBlur"}) {
         if (h.hasOutput(port)) {
             EXPECT_TRUE(sameBits(shared.out(port), h.out(port))) << "shared " << port;
+        }
+    }
+
+    // One pixel marked untested (VirtualMotion moved its motion): the frame's taps are tested
+    // again, so the garbage last-frame geometry is seen (no history survives it) ...
+    Image marked(f.depth.extent(), Format::Int32);
+    std::copy_n(h.out("taps").view().ints(), marked.view().pixels(), marked.view().ints());
+    marked.view().ints()[marked.view().pixels() / 2] = taps::kUntested;
+    shared.bind("sharedTaps", marked);
+    shared.run();
+    if (h.hasOutput("historyLength") &&
+        (std::isfinite(p.depthThreshold) || std::isfinite(p.normalThreshold))) {
+        const ImageView hl = shared.out("historyLength").view();
+        EXPECT_EQ(*std::max_element(hl.channel(0), hl.channel(0) + hl.pixels()), 0.f)
+            << "an untested pixel: the taps are tested here";
+    }
+    // ... and with the real geometry the outputs are the shared tests' (the same tests).
+    shared.bind("prevDepth", f.prevDepth);
+    shared.bind("prevNormal", f.prevNormal);
+    if (b.prevObjectId) shared.bind("prevObjectId", f.prevObjectId);
+    if (p.depthPrecision > 0.f) {
+        svgftest::FactResolve facts(kDepthPrecisionFact, std::to_string(p.depthPrecision));
+        shared.pass().resolve(facts);
+    }
+    shared.run();
+    for (const char* port : {"color", "moments", "historyLength", "resampleBlur"}) {
+        if (h.hasOutput(port)) {
+            EXPECT_TRUE(sameBits(shared.out(port), h.out(port))) << "untested pixel " << port;
         }
     }
 

@@ -3,6 +3,7 @@
 // Depth describes it (camera -> floor -> wall), so the test checks the pass against the
 // geometry, not against its own formula: the virtual motion must send a reflection pixel to
 // where the reflected wall point was seen last frame.
+#include <denoise/TapsMask.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -181,6 +182,30 @@ TEST(VirtualMotion, MirrorFloorReflectionLandsWhereItWas) {
     EXPECT_GT(worstSurface, 1.0);  // the floor's own motion misses the reflection
 }
 
+// The surface motion's taps pass on unchanged where the motion is the surface motion; a pixel
+// given the virtual motion is marked untested, so the next Reprojection runs its own tests.
+TEST(VirtualMotion, PassesTapsOnMarkingThePixelsItMoved) {
+    const Frame cur = frameOf(kCur, kPrev), prev = frameOf(kPrev, kPrev);
+    Image tapsIn({W, H}, Format::Int32);
+    for (size_t i = 0; i < tapsIn.view().pixels(); ++i) tapsIn.view().ints()[i] = int32_t(i % 97);
+    auto h = harness(cur, prev);
+    h.bind("taps", tapsIn);
+    h.useOutputs({"motion", "taps"});
+    h.run();
+    int moved = 0, kept = 0;
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            const size_t i = size_t(y) * W + size_t(x);
+            const bool same = h.out("motion").at(0, x, y) == cur.motion.at(0, x, y) &&
+                              h.out("motion").at(1, x, y) == cur.motion.at(1, x, y);
+            const int32_t t = h.out("taps").view().ints()[i];
+            EXPECT_EQ(t, same ? tapsIn.view().ints()[i] : taps::kUntested) << x << "," << y;
+            (same ? kept : moved)++;
+        }
+    EXPECT_GT(moved, W * H / 4);
+    EXPECT_GT(kept, W * H / 8);  // the rows above the horizon see no floor
+}
+
 // A pixel the mask leaves out, or one whose virtual image disagrees with last frame's path
 // length (a curved mirror, a moving reflected object), keeps its surface motion.
 TEST(VirtualMotion, KeepsSurfaceMotionOffReflectionsAndWhereInconsistent) {
@@ -276,5 +301,9 @@ TEST(VirtualMotion, LeftOutWithoutReflectionOrPathLength) {
     all.bound = {"motion", "reflection", "pathLength", "taps"};
     pass.resolve(all);
     EXPECT_TRUE(all.forwarded.empty());
-    EXPECT_EQ(all.absent.count("taps"), 1u);
+    EXPECT_EQ(all.absent.count("taps"), 0u);  // computed: the taps with moved pixels marked
+    Resolve noTaps;
+    noTaps.bound = {"motion", "reflection", "pathLength"};
+    pass.resolve(noTaps);
+    EXPECT_EQ(noTaps.absent.count("taps"), 1u);
 }
