@@ -130,7 +130,8 @@ private:
     void planPositionFromDepth(const ExrInput* first);
     void unprojectDepth(FrameContext& ctx, const float* depth, bool rayLength, const ImageView& out,
                         int W, int H) const;
-    /// normal reconstructed from depth and the camera where the render has no normal pass.
+    /// normal reconstructed from depth where the render has no normal pass: with the camera,
+    /// else in camera space from an assumed field of view (kAssumedFieldOfView).
     void planNormalFromDepth(const ExrInput* first);
     void normalsFromDepth(FrameContext& ctx, const float* depth, bool rayLength,
                           const ImageView& out, int W, int H) const;

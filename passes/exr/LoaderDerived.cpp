@@ -10,6 +10,7 @@
 
 #include "ExrLoader.h"
 #include "LoaderDecode.h"
+#include "SceneMatrices.h"
 #include "Unproject.h"
 
 namespace kestrel::exr {
@@ -90,15 +91,17 @@ void ExrLoader::normalsFromDepth(FrameContext& ctx, const float* depth, bool ray
     const size_t N = size_t(W) * size_t(H);
     std::optional<Mat4> cameraToWorld;
     if (ctx.scene && ctx.scene->hasCamera) cameraToWorld = inverse(ctx.scene->worldToCamera);
-    if (!cameraToWorld) {  // this frame has no camera: no normals (as the background)
-        for (int c = 0; c < 3; ++c) fillPlane(asFloats(out, c), N, 0.f);
-        return;
-    }
+    // A frame without a camera: normals in camera space from an assumed field of view. Under
+    // a wrong focal length the unprojected surface is the true one scaled across the view
+    // axis, so a plane stays a plane with one normal, and the filters' normal test still
+    // parts creases (the normals lean, which no test between two pixels sees).
+    const Mat4 cameraToPixel = cameraToWorld ? ctx.scene->worldToPixel * *cameraToWorld
+                                             : perspectiveToPixel(kAssumedFieldOfView, W, H);
+    if (!cameraToWorld) cameraToWorld = Mat4::identity();
     // Positions of the whole frame first (a transient 12 B/px, only on renders without a
     // normal pass): each pixel's normal reads its neighbours'.
     std::vector<float> pos(3 * N);
     const std::array<float*, 3> p = {pos.data(), pos.data() + N, pos.data() + 2 * N};
-    const Mat4 cameraToPixel = ctx.scene->worldToPixel * *cameraToWorld;
     ctx.parallelRows(H, [&](int y0, int y1) {
         unprojectRows(cameraToPixel, *cameraToWorld, depth, rayLength, p, W, y0, y1);
     });

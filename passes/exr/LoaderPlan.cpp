@@ -377,15 +377,22 @@ void ExrLoader::planNormalFromDepth(const ExrInput* first) {
     // A render with neither Normal nor Denoising Normal (Blender: Combined and Z only) would
     // leave every edge-stopping filter without its normal term; geometric normals from the
     // depth keep the filters from blurring across creases.
-    if (!normal.absent || depth.absent || !depth.isDirect() || !hasCamera(first)) return;
+    // Without a camera they are reconstructed in camera space from an assumed field of view
+    // (normalsFromDepth says why that is enough for the filters).
+    if (!normal.absent || depth.absent || !depth.isDirect()) return;
     const std::string missing = normal.why;
     normal.terms = {{{depth.terms[0][0][0]}}};
     normal.fromDepth = true;
     normal.rayLength = depth.zeroIsBackground;  // Denoising Depth: distance along the ray
     normal.cameraSpace = normal.zeroIsBackground = false;
     normal.absent = false;
-    normal.why = "reconstructed from " + depth.terms[0][0][0].str() + " with " +
-                 (cameras_ ? cameras_->path().filename().string() : "the file's camera") +
+    const std::string camera =
+        hasCamera(first)
+            ? (cameras_ ? cameras_->path().filename().string() : "the file's camera")
+            : "no camera: in camera space, for Blender's default 50 mm lens (" +
+                  std::to_string(int(std::lround(kAssumedFieldOfView))) +
+                  " degrees across); the camera parameter (camera.json) gives world space";
+    normal.why = "reconstructed from " + depth.terms[0][0][0].str() + " with " + camera +
                  " (geometric normals, no bump or smoothing; " + missing + ")";
 }
 

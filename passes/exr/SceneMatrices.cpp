@@ -28,6 +28,17 @@ Mat4 ndcToPixel(int width, int height) {
     return v;
 }
 
+Mat4 perspectiveToPixel(double fieldOfView, int width, int height) {
+    const double tanX = std::tan(fieldOfView * 0.5 * 3.14159265358979323846 / 180.0),
+                 tanY = tanX * double(height) / double(std::max(width, 1));
+    Mat4 p;
+    p.m[0][0] = float(1.0 / tanX);
+    p.m[1][1] = float(1.0 / tanY);
+    p.m[2][2] = -1.f;  // depth is not read from it (pointOnPixelRay uses rows 0, 1 and 3)
+    p.m[3][2] = -1.f;  // w = -z: the distance in front of the camera
+    return ndcToPixel(width, height) * p;
+}
+
 namespace {
 // The bound of the loader's absurd input values (docs/errors.md): a matrix entry beyond it
 // (1e308 became inf as a float) places no camera or object anywhere.
@@ -87,7 +98,8 @@ SceneData frameEntry(const nlohmann::json& f, const Mat4& viewport,
     if (f.contains("objects"))
         for (const auto& [name, m] : f["objects"].items())
             if (auto it = ids.find(name); it != ids.end())
-                s.objectToWorld[it->second] = toMat(f["objects"], name, false);  // scale 0 hides one
+                s.objectToWorld[it->second] =
+                    toMat(f["objects"], name, false);  // scale 0 hides one
     return s;
 }
 }  // namespace

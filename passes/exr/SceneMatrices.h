@@ -35,4 +35,12 @@ void readGames202Matrices(const std::filesystem::path& file, SceneData& scene);
 /// Blender's pixel mapping folded into a matrix: px = (ndc.x + 1)/2 W, py = (1 - ndc.y)/2 H.
 Mat4 ndcToPixel(int width, int height);
 
+/// Horizontal field of view (degrees) of the camera a render without one is taken to have:
+/// Blender's default, a 50 mm lens on a 36 mm sensor.
+constexpr double kAssumedFieldOfView = 39.5977;
+
+/// Camera space to pixels for a perspective camera of `fieldOfView` horizontal degrees on a
+/// width x height image (square pixels; OpenGL camera space, looking down -z).
+Mat4 perspectiveToPixel(double fieldOfView, int width, int height);
+
 }  // namespace kestrel::exr

@@ -43,7 +43,8 @@ PassHarness loaderOn(const TempDir& tmp, Channels ch) {
 /// Frame 5 of blender-street re-written with only `passes` (each "Pass.comps", e.g.
 /// "Combined.RGBA") beside its camera.json, then loaded for `output`.
 PassHarness loadStreetSubset(const std::string& dir, const TempDir& tmp,
-                             const std::vector<std::string>& passes, const std::string& output) {
+                             const std::vector<std::string>& passes, const std::string& output,
+                             bool withCamera = true) {
     const std::string file = dir + "/noisy/frame_0005.exr";
     Channels ch;
     for (const auto& p : passes) {
@@ -54,7 +55,7 @@ PassHarness loadStreetSubset(const std::string& dir, const TempDir& tmp,
         }
     }
     writeExr(tmp.path / "frame_0005.exr", box2(320, 180), ch);
-    std::filesystem::copy_file(dir + "/camera.json", tmp.path / "camera.json");
+    if (withCamera) std::filesystem::copy_file(dir + "/camera.json", tmp.path / "camera.json");
     auto h =
         PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / "frame_####.exr").string()}});
     h.useOutputs({output});
@@ -227,6 +228,81 @@ TEST(ExrLoaderDenoisingData, NormalReconstructedFromDepthMatchesTheNormalPass) {
                 planar, rayLength);
     EXPECT_GT(planar, 0.94);     // measured 0.9647
     EXPECT_GT(rayLength, 0.90);  // measured 0.9281
+}
+
+// Without a camera (Combined and Z only, no camera.json) the normals are reconstructed in
+// camera space from an assumed field of view (Blender's default lens), where they were left out
+// before and svgf.json refused the render. Against the Normal pass turned to camera space with
+// the real camera: a wrong focal length leans them (blender-street's lens is not the default),
+// but a plane keeps one normal, which is what the filters' normal test between pixels needs.
+TEST(ExrLoaderDenoisingData, NormalReconstructedFromDepthWithoutACamera) {
+    const std::string dir = sharedData("blender-street");
+    if (dir.empty() || !std::filesystem::exists(dir + "/noisy/frame_0005.exr"))
+        GTEST_SKIP() << "../shared/data/blender-street not present";
+    const std::string file = dir + "/noisy/frame_0005.exr";
+    TempDir tmp("street-normal-no-camera"), cam("street-camera");
+    auto h = loadStreetSubset(dir, tmp, {"Combined.RGBA", "Depth.Z"}, "normal", false);
+    EXPECT_FALSE(h.scene.hasCamera);
+    const auto withCamera = loadStreetSubset(dir, cam, {"Combined.RGBA", "Depth.Z"}, "depth");
+    const auto& R = withCamera.scene.worldToCamera.m;
+    std::vector<float> t[3];
+    for (int c = 0; c < 3; ++c)
+        t[c] = readChannel(file, std::string("ViewLayer.Normal.") + "XYZ"[c]);
+    int within15 = 0, unit = 0, surface = 0;
+    for (int y = 0; y < 180; ++y)
+        for (int x = 0; x < 320; ++x) {
+            const size_t i = size_t(y) * 320 + size_t(x);
+            if (t[0][i] == 0 && t[1][i] == 0 && t[2][i] == 0) continue;  // background
+            ++surface;
+            double dot = 0, len2 = 0;
+            for (int r = 0; r < 3; ++r) {
+                const double n = h.out("normal").at(r, x, y);
+                const double truth = R[r][0] * t[0][i] + R[r][1] * t[1][i] + R[r][2] * t[2][i];
+                dot += n * truth;
+                len2 += n * n;
+            }
+            unit += std::fabs(len2 - 1.0) < 1e-3;
+            within15 += dot > std::cos(15.0 * M_PI / 180.0);
+        }
+    ASSERT_GT(surface, 320 * 180 / 3);
+    std::printf("[ measured ] without a camera: unit normals %.4f, within 15 degrees %.4f\n",
+                double(unit) / surface, double(within15) / surface);
+    EXPECT_GT(unit, surface * 99 / 100);
+    EXPECT_GT(within15, surface * 8 / 10);
+}
+
+// The same on generated data: a plane seen by a 60 degree camera, loaded without one (the loader
+// assumes 39.6 degrees) still gets one unit normal over the whole plane, facing the camera.
+TEST(ExrLoaderDenoisingData, PlaneKeepsOneNormalUnderAnAssumedCamera) {
+    TempDir tmp("plane-no-camera");
+    const int w = 16, h = 12;
+    const double tanX = std::tan(30.0 * M_PI / 180.0), tanY = tanX * h / w;
+    Channels ch;
+    for (const char* c : {"R", "G", "B", "A"})
+        ch[std::string("ViewLayer.Combined.") + c].assign(size_t(w * h), 0.5f);
+    std::vector<float>& z = ch["ViewLayer.Depth.Z"];
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            // The plane 0.3 x + 0.2 y + z = 4 in camera space (z forward): along the pixel's ray
+            // (cx, cy, 1) it lies at planar depth 4 / (0.3 cx + 0.2 cy + 1).
+            const double cx = ((x + 0.5) / w * 2 - 1) * tanX, cy = (1 - (y + 0.5) / h * 2) * tanY;
+            z.push_back(float(4.0 / (0.3 * cx + 0.2 * cy + 1.0)));
+        }
+    writeExr(tmp.path / "f.0001.exr", box2(w, h), ch);
+    auto l = PassHarness::make<ExrLoader>({1, 1}, {{"path", (tmp.path / "f.####.exr").string()}});
+    l.useOutputs({"normal"});
+    l.ctx.frameNumber = 1;
+    l.run();
+    const auto& n = l.out("normal");
+    for (int y = 1; y < h - 1; ++y)
+        for (int x = 1; x < w - 1; ++x)
+            for (int c = 0; c < 3; ++c)
+                EXPECT_NEAR(n.at(c, x, y), n.at(c, w / 2, h / 2), 1e-4) << x << "," << y;
+    const float len2 = n.at(0, w / 2, h / 2) * n.at(0, w / 2, h / 2) +
+                       n.at(1, w / 2, h / 2) * n.at(1, w / 2, h / 2) +
+                       n.at(2, w / 2, h / 2) * n.at(2, w / 2, h / 2);
+    EXPECT_NEAR(len2, 1.f, 1e-4f);
+    EXPECT_GT(n.at(2, w / 2, h / 2), 0.5f);  // towards the camera (+z in OpenGL camera space)
 }
 
 // With both normal passes, Cycles' Denoising Normal wins: it passes through mirrors and glass
