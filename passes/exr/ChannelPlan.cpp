@@ -81,6 +81,10 @@ const std::vector<OutputSpec>& loaderOutputs() {
         {"reflection", Format::Float, 0.f,
          "1 where the pixel's features describe what a near-specular surface shows (a mirror, "
          "a polished floor: Cycles' denoising features pass such bounces), 0 elsewhere"},
+        {"lightThroughMirror", Format::Float, 0.f,
+         "1 where the camera path reached a light or the sky through near-specular bounces only "
+         "(Cycles' Denoising Normal is zero on a surface): a smooth mirror's view of them, which "
+         "a 1-spp render gets exact (KeepExact), 0 elsewhere"},
         {"pathLength", Format::Float, 0.f,
          "length of the camera path through near-specular bounces to the surface the features "
          "describe (Cycles' Denoising Depth), 0 on the background; where reflection is 1 it places "
@@ -389,8 +393,18 @@ Plan planBlender(const ChannelSets& files, const std::string& L) {
             reflection.absent = false;
             reflection.why = "where " + P("Denoising Normal") + " names another surface than " +
                              P("Normal") + " (needs the camera)";
+            Recipe& light = *b.plan.find("lightThroughMirror");
+            light.reflectionOf = reflection.reflectionOf;
+            light.lightOnly = true;
+            light.absent = false;
+            light.why =
+                "where " + P("Denoising Normal") + " is zero and " + P("Normal") + " is not";
         }
     }
+    if (!b.plan.find("lightThroughMirror")->reflectionOf)
+        b.absent("lightThroughMirror", "channels " + P("Denoising Normal") + " and " + P("Normal") +
+                                           " (both: where the first is zero and the second not, "
+                                           "the path passed a mirror to a light or the sky)");
     if (!b.plan.find("reflection")->reflectionOf)
         b.absent("reflection", "channels " + P("Denoising Normal") + " and " + P("Normal") +
                                    " (both: where they differ, the features passed a mirror)");
@@ -457,7 +471,7 @@ Plan planGames202(const ChannelSets& files) {
         depth.backgroundMask = ChannelRef{"ID", "Y"};
     for (const char* o :
          {"albedo", "emission", "direct", "indirect", "diffuse", "diffuseAlbedo", "specular",
-          "specularAlbedo", "motion", "reflection", "pathLength", "alpha"})
+          "specularAlbedo", "motion", "reflection", "lightThroughMirror", "pathLength", "alpha"})
         b.absent(o,
                  std::string("buffer for ") + o + " (it has beauty, normal, position, depth, ID)");
     return b.plan;
@@ -515,6 +529,7 @@ void clearRecipe(Recipe& r) {
     r.skyDepth.reset();
     r.zeroFallback.reset();
     r.reflectionOf.reset();
+    r.lightOnly = false;
     r.zeroIsBackground = r.cameraSpace = r.fromDepth = r.rayLength = false;
     r.scale[0] = r.scale[1] = r.scale[2] = r.scale[3] = 1.f;
 }

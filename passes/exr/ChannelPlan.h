@@ -76,6 +76,9 @@ struct Recipe {
     /// where the first names another surface than the second (the features passed a
     /// near-specular bounce) or none (zero: they reached the sky or a light that way).
     std::optional<std::pair<Factor, Factor>> reflectionOf;
+    /// With reflectionOf: 1 only where the first is zero on a surface (the path reached a light
+    /// or the sky through the bounce), which needs no camera (lightThroughMirror).
+    bool lightOnly = false;
     bool absent = false;
     std::string why;  ///< absent: which channel is missing; present: what is read (for notes)
 

@@ -1,6 +1,6 @@
 // The loader's outputs derived from other channels with the frame's camera: positions and
 // normals from depth (renders without those passes), the sky's motion from the cameras'
-// rotation (Blender), and the reflection mask.
+// rotation (Blender), and the reflection masks.
 #include <kestrel/PixelMath.h>
 
 #include <algorithm>
@@ -43,6 +43,20 @@ void reflectionMask(FrameContext& ctx, const std::pair<Factor, Factor>& of, cons
         const bool none = dx == 0.f && dy == 0.f && dz == 0.f;
         o[i] = surface && (none || dx * cx + dy * cy + dz * cz < 0.99f) ? 1.f : 0.f;
     }
+}
+
+/// Recipe::lightOnly: 1 where Cycles' Denoising Normal is zero and the Normal pass is not (the
+/// path reached a light or the sky through a near-specular bounce), else 0; no camera needed.
+void lightThroughMirrorMask(const std::pair<Factor, Factor>& of, const Planes& planes,
+                            const ImageView& out, size_t n) {
+    float* o = asFloats(out, 0);
+    const float* d[3] = {planes.at(of.first[0]), planes.at(of.first[1]), planes.at(of.first[2])};
+    const float* g[3] = {planes.at(of.second[0]), planes.at(of.second[1]), planes.at(of.second[2])};
+    auto zero = [&](const float* const* v, size_t i) {
+        return px::sanitizeNormal(v[0][i]) == 0.f && px::sanitizeNormal(v[1][i]) == 0.f &&
+               px::sanitizeNormal(v[2][i]) == 0.f;
+    };
+    for (size_t i = 0; i < n; ++i) o[i] = zero(d, i) && !zero(g, i) ? 1.f : 0.f;
 }
 
 }  // namespace
@@ -124,9 +138,13 @@ void ExrLoader::computeDerived(FrameContext& ctx, PassIO& io, const Routing& rt,
         else
             unprojectDepth(ctx, depth, r->rayLength, output(io, r), W, H);
     }
-    for (const Recipe* r : rt.active)
-        if (r->reflectionOf)
-            reflectionMask(ctx, *r->reflectionOf, planes_, output(io, r), size_t(W) * size_t(H));
+    const size_t N = size_t(W) * size_t(H);
+    for (const Recipe* r : rt.active) {
+        if (r->reflectionOf && r->lightOnly)
+            lightThroughMirrorMask(*r->reflectionOf, planes_, output(io, r), N);
+        else if (r->reflectionOf)
+            reflectionMask(ctx, *r->reflectionOf, planes_, output(io, r), N);
+    }
 }
 
 }  // namespace kestrel::exr

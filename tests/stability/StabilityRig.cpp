@@ -209,7 +209,8 @@ const std::vector<std::pair<std::string, Format>>& sourcePorts() {
         // As the ExrLoader's optional outputs graphs/svgf.json reads (VirtualMotion): absent
         // unless a scenario provides them.
         {"reflection", Format::Float},
-        {"pathLength", Format::Float}};
+        {"pathLength", Format::Float},
+        {"lightThroughMirror", Format::Float}};
     return ports;
 }
 

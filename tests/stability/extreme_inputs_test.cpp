@@ -125,6 +125,36 @@ TEST(ExtremeInputs, AntiAliasedAlbedoWithZeroNanAndInf) {
     EXPECT_TRUE(bitwiseEqual(one.last, two.last)) << "1 vs 2 threads differ";
 }
 
+TEST(ExtremeInputs, LightThroughMirrorWithZeroNanAndInf) {
+    // The loader's lightThroughMirror (KeepExact keeps the 1-spp colour of a uniform view through
+    // a mirror): a block of uniform colour on the mask, the mask holding 0, NaN, +-Inf and 2 in
+    // single pixels and the block's colour NaN and +-Inf in others. Kept pixels are the input's
+    // own values, the rest filtered: the output stays finite, in the input's sanitised range,
+    // the same for 1 and 2 threads.
+    auto modify = [](int64_t, Frame& f) {
+        for (int y = 8; y < 24; ++y)
+            for (int x = 10; x < 30; ++x) {
+                f["lightThroughMirror"].at(0, x, y) = 1.f;
+                setRgb(f, "color", x, y, 1.f, 1.f, 1.f);
+            }
+        const float masks[] = {0.f, kNaN, kInf, -kInf, 2.f};
+        for (int i = 0; i < 5; ++i) f["lightThroughMirror"].at(0, 12 + 3 * i, 10) = masks[i];
+        setRgb(f, "color", 14, 16, kNaN, kNaN, kNaN);
+        setRgb(f, "color", 20, 18, kInf, -kInf, kInf);
+        setRgb(f, "color", 25, 20, 0.f, 0.f, 0.f);
+    };
+    Scenario sc = plainScene({48, 32}, modify);
+    sc.provides.insert("lightThroughMirror");
+    setScenario("light-through-mirror", sc);
+    const TestGraph g = svgfGraph("light-through-mirror");
+    const Checked one = runBounded(g, kFrames, 0.f, kPlainHi, 1, "light-through-mirror");
+    const Checked two = runBounded(g, kFrames, 0.f, kPlainHi, 2, "light-through-mirror");
+    EXPECT_TRUE(bitwiseEqual(one.last, two.last)) << "1 vs 2 threads differ";
+    // The block's inside is kept as rendered (1.0), which the filters alone would not give.
+    const size_t pixels = 48 * 32, at = size_t(12) * 48 + 20;  // planar: channel c at c pixels
+    for (size_t c = 0; c < 3; ++c) EXPECT_EQ(one.last[c * pixels + at], 1.f) << c;
+}
+
 TEST(ExtremeInputs, AntiAliasedSplitAlbedosWithZeroNanAndInf) {
     // The same with the diffuse/specular split (a Blender render with a 1.5 px filter): each
     // chain averages its own albedo, and TAA runs (the loader offers jitteredAlbedo with the

@@ -347,6 +347,27 @@ TEST(ExrLoaderDenoisingData, DenoisingNormalStaysInCameraSpaceWithoutACamera) {
     EXPECT_EQ(h.out("normal").at(1, 0, 0), 1.f);
 }
 
+// lightThroughMirror: 1 where Denoising Normal is zero on a surface (the path reached a light
+// or the sky through a mirror), 0 on the background and where it names a surface; no camera
+// needed (KeepExact keeps such a view's 1-spp colour).
+TEST(ExrLoaderDenoisingData, LightThroughMirrorWhereDenoisingNormalIsZeroOnASurface) {
+    for (bool namesSurface : {false, true}) {
+        TempDir tmp(namesSurface ? "light-mirror-surface" : "light-mirror");
+        Channels ch;
+        ch["ViewLayer.Normal.X"] = {0.f, 0.f};
+        ch["ViewLayer.Normal.Y"] = {1.f, 0.f};  // pixel 1 is background
+        ch["ViewLayer.Normal.Z"] = {0.f, 0.f};
+        const float dn = namesSurface ? 0.6f : 0.f;
+        addGroup(ch, "Denoising Normal", "XYZ", {dn, 0.f, 0.f});
+        auto h = loaderOn(tmp, ch);
+        h.useOutputs({"lightThroughMirror"});
+        h.ctx.frameNumber = 1;
+        h.run();
+        EXPECT_EQ(h.out("lightThroughMirror").at(0, 0, 0), namesSurface ? 0.f : 1.f);
+        EXPECT_EQ(h.out("lightThroughMirror").at(0, 1, 0), 0.f);
+    }
+}
+
 // Blender writes 0 motion on the background even when the camera turns; without camera.json
 // the turn is unknown, so the loader marks the background's motion unknown (NaN), which
 // Reprojection rejects: a sky held still while the camera pans was smeared (the background of

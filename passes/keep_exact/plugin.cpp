@@ -1,0 +1,7 @@
+#include <kestrel/Plugin.h>
+
+#include "KeepExactPass.h"
+
+KESTREL_PLUGIN(r) {
+    r.add<KeepExactPass>();
+}
