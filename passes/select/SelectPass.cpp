@@ -28,8 +28,7 @@ void SelectPass::resolve(ResolveContext& rc) {
     } else {
         // Name what each branch lacks (a missing channel and how to enable it), once where
         // both lack the same.
-        const std::string a = rc.unboundReason(d.preferred.name),
-                          b = rc.unboundReason(d.fallback.name);
+        const std::string a = rc.unboundReason(d.preferred), b = rc.unboundReason(d.fallback);
         std::string why = "neither 'preferred' nor 'fallback' is produced for this scene";
         if (a == b && !a.empty())
             why += ": " + a;

@@ -55,8 +55,8 @@ void VirtualMotionPass::resolve(ResolveContext& rc) {
         rc.note("virtual motion where reflection is set");
         return;
     }
-    const std::string why = !rc.isBound(d.reflection) ? rc.unboundReason(d.reflection.name)
-                                                      : rc.unboundReason(d.pathLength.name);
+    const std::string why =
+        !rc.isBound(d.reflection) ? rc.unboundReason(d.reflection) : rc.unboundReason(d.pathLength);
     rc.forward(d.motionOut, d.motion);
     if (rc.isBound(d.taps))
         rc.forward(d.tapsOut, d.taps);

@@ -123,6 +123,7 @@ public:
     /// A fact some source stated, or nullopt.
     virtual std::optional<std::string> fact(std::string_view /*key*/) const { return std::nullopt; }
     bool isBound(const InputPort& p) const { return isBound(p.name); }
+    std::string unboundReason(const InputPort& p) const { return unboundReason(p.name); }
     void forward(const OutputPort& o, const InputPort& i) { forward(o.name, i.name); }
     void setAbsent(const OutputPort& o, std::string reason) {
         setAbsent(o.name, std::move(reason));
