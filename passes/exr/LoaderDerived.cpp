@@ -47,16 +47,19 @@ void reflectionMask(FrameContext& ctx, const std::pair<Factor, Factor>& of, cons
 
 /// Recipe::lightOnly: 1 where Cycles' Denoising Normal is zero and the Normal pass is not (the
 /// path reached a light or the sky through a near-specular bounce), else 0; no camera needed.
+/// The Denoising Normal must be exactly zero (read raw: a damaged NaN or Inf is not a view of a
+/// light, and KeepExact would keep that pixel's 1-spp colour).
 void lightThroughMirrorMask(const std::pair<Factor, Factor>& of, const Planes& planes,
                             const ImageView& out, size_t n) {
     float* o = asFloats(out, 0);
     const float* d[3] = {planes.at(of.first[0]), planes.at(of.first[1]), planes.at(of.first[2])};
     const float* g[3] = {planes.at(of.second[0]), planes.at(of.second[1]), planes.at(of.second[2])};
-    auto zero = [&](const float* const* v, size_t i) {
-        return px::sanitizeNormal(v[0][i]) == 0.f && px::sanitizeNormal(v[1][i]) == 0.f &&
-               px::sanitizeNormal(v[2][i]) == 0.f;
+    auto exactlyZero = [&](size_t i) { return d[0][i] == 0.f && d[1][i] == 0.f && d[2][i] == 0.f; };
+    auto surface = [&](size_t i) {
+        return px::sanitizeNormal(g[0][i]) != 0.f || px::sanitizeNormal(g[1][i]) != 0.f ||
+               px::sanitizeNormal(g[2][i]) != 0.f;
     };
-    for (size_t i = 0; i < n; ++i) o[i] = zero(d, i) && !zero(g, i) ? 1.f : 0.f;
+    for (size_t i = 0; i < n; ++i) o[i] = exactlyZero(i) && surface(i) ? 1.f : 0.f;
 }
 
 }  // namespace
@@ -106,9 +109,11 @@ void ExrLoader::normalsFromDepth(FrameContext& ctx, const float* depth, bool ray
     std::optional<Mat4> cameraToWorld;
     if (ctx.scene && ctx.scene->hasCamera) cameraToWorld = inverse(ctx.scene->worldToCamera);
     // A frame without a camera: normals in camera space from an assumed field of view. Under
-    // a wrong focal length the unprojected surface is the true one scaled across the view
+    // a wrong focal length a planar depth unprojects to the true surface scaled across the view
     // axis, so a plane stays a plane with one normal, and the filters' normal test still
-    // parts creases (the normals lean, which no test between two pixels sees).
+    // parts creases (the normals lean, which no test between two pixels sees). A ray-length
+    // depth (Denoising Depth) bends slightly instead: each ray's direction is off by its own
+    // amount.
     const Mat4 cameraToPixel = cameraToWorld ? ctx.scene->worldToPixel * *cameraToWorld
                                              : perspectiveToPixel(kAssumedFieldOfView, W, H);
     if (!cameraToWorld) cameraToWorld = Mat4::identity();

@@ -35,8 +35,9 @@ void readGames202Matrices(const std::filesystem::path& file, SceneData& scene);
 /// Blender's pixel mapping folded into a matrix: px = (ndc.x + 1)/2 W, py = (1 - ndc.y)/2 H.
 Mat4 ndcToPixel(int width, int height);
 
-/// Horizontal field of view (degrees) of the camera a render without one is taken to have:
-/// Blender's default, a 50 mm lens on a 36 mm sensor.
+/// Field of view (degrees) across the image's width of the camera a render without one is taken
+/// to have: Blender's default, a 50 mm lens on a 36 mm sensor (Blender fits the sensor to the
+/// longer side, so for a portrait render this is its height's: the normals then lean more).
 constexpr double kAssumedFieldOfView = 39.5977;
 
 /// Camera space to pixels for a perspective camera of `fieldOfView` horizontal degrees on a

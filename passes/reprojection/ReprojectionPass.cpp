@@ -34,7 +34,9 @@ ReprojectionPass::Declaration::Declaration()
                                "thresholds (the specular chain takes the diffuse chain's): its "
                                "outcomes replace this pass's consistency tests, which are then not "
                                "run (a bilinear pass's taps hold no outer taps: Catmull-Rom then "
-                               "resamples bilinearly)");
+                               "resamples bilinearly); on a frame where a pixel is marked "
+                               "untested (VirtualMotion moved its motion: denoise/TapsMask.h) "
+                               "this pass tests with its own settings instead");
     color = output("color", Format::Float3, "reprojected colour (0 where disoccluded)");
     moments = output("moments", Format::Float2, "reprojected moments (0 where disoccluded)");
     historyLength = output("historyLength", Format::Float,
@@ -95,7 +97,9 @@ void ReprojectionPass::resolve(ResolveContext& rc) {
     s_.depthPrecision = depthPrecision(rc);
     if (rc.isBound(d.sharedTaps)) {
         rc.setAbsent(d.taps, "the taps come from sharedTaps");
-        rc.note("consistency tests taken from sharedTaps");
+        rc.note(
+            "consistency tests taken from sharedTaps (tested here on a frame with a pixel "
+            "marked untested)");
     }
     if (rc.isBound(d.motion)) {
         rc.note("reprojecting with motion vectors");

@@ -132,13 +132,15 @@ TEST(ExtremeInputs, LightThroughMirrorWithZeroNanAndInf) {
     // own values, the rest filtered: the output stays finite, in the input's sanitised range,
     // the same for 1 and 2 threads.
     auto modify = [](int64_t, Frame& f) {
+        const bool mask = f.images.count("lightThroughMirror") > 0;  // not in the control
         for (int y = 8; y < 24; ++y)
             for (int x = 10; x < 30; ++x) {
-                f["lightThroughMirror"].at(0, x, y) = 1.f;
+                if (mask) f["lightThroughMirror"].at(0, x, y) = 1.f;
                 setRgb(f, "color", x, y, 1.f, 1.f, 1.f);
             }
         const float masks[] = {0.f, kNaN, kInf, -kInf, 2.f};
-        for (int i = 0; i < 5; ++i) f["lightThroughMirror"].at(0, 12 + 3 * i, 10) = masks[i];
+        for (int i = 0; mask && i < 5; ++i)
+            f["lightThroughMirror"].at(0, 12 + 3 * i, 10) = masks[i];
         setRgb(f, "color", 14, 16, kNaN, kNaN, kNaN);
         setRgb(f, "color", 20, 18, kInf, -kInf, kInf);
         setRgb(f, "color", 25, 20, 0.f, 0.f, 0.f);
@@ -150,9 +152,15 @@ TEST(ExtremeInputs, LightThroughMirrorWithZeroNanAndInf) {
     const Checked one = runBounded(g, kFrames, 0.f, kPlainHi, 1, "light-through-mirror");
     const Checked two = runBounded(g, kFrames, 0.f, kPlainHi, 2, "light-through-mirror");
     EXPECT_TRUE(bitwiseEqual(one.last, two.last)) << "1 vs 2 threads differ";
-    // The block's inside is kept as rendered (1.0), which the filters alone would not give.
+    // The block's inside is kept as rendered (1.0), which the filters alone do not give: the
+    // same scenario without the mask is the control.
     const size_t pixels = 48 * 32, at = size_t(12) * 48 + 20;  // planar: channel c at c pixels
     for (size_t c = 0; c < 3; ++c) EXPECT_EQ(one.last[c * pixels + at], 1.f) << c;
+    sc.provides.erase("lightThroughMirror");
+    setScenario("light-through-mirror-off", sc);
+    const Checked off = runBounded(svgfGraph("light-through-mirror-off"), kFrames, 0.f, kPlainHi, 1,
+                                   "light-through-mirror-off");
+    EXPECT_NE(off.last[at], 1.f) << "the control: filtered, not kept";
 }
 
 TEST(ExtremeInputs, AntiAliasedSplitAlbedosWithZeroNanAndInf) {

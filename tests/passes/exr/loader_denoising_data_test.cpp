@@ -272,7 +272,8 @@ TEST(ExrLoaderDenoisingData, NormalReconstructedFromDepthWithoutACamera) {
 }
 
 // The same on generated data: a plane seen by a 60 degree camera, loaded without one (the loader
-// assumes 39.6 degrees) still gets one unit normal over the whole plane, facing the camera.
+// assumes 39.6 degrees) still gets one unit normal over the whole plane, facing the camera and
+// leaning as the assumed lens predicts.
 TEST(ExrLoaderDenoisingData, PlaneKeepsOneNormalUnderAnAssumedCamera) {
     TempDir tmp("plane-no-camera");
     const int w = 16, h = 12;
@@ -302,7 +303,12 @@ TEST(ExrLoaderDenoisingData, PlaneKeepsOneNormalUnderAnAssumedCamera) {
                        n.at(1, w / 2, h / 2) * n.at(1, w / 2, h / 2) +
                        n.at(2, w / 2, h / 2) * n.at(2, w / 2, h / 2);
     EXPECT_NEAR(len2, 1.f, 1e-4f);
-    EXPECT_GT(n.at(2, w / 2, h / 2), 0.5f);  // towards the camera (+z in OpenGL camera space)
+    // The assumed camera scales x and y by s = tan(19.8 deg) / tan(30 deg): the plane's normal
+    // is then (-0.3 / s, -0.2 / s, 1) normalised, facing the camera (OpenGL camera space: x
+    // right, y up, z towards the viewer).
+    const double s = std::tan(kestrel::exr::kAssumedFieldOfView * 0.5 * M_PI / 180.0) / tanX;
+    const double e[3] = {-0.3 / s, -0.2 / s, 1.0}, len = std::sqrt(e[0] * e[0] + e[1] * e[1] + 1.0);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(n.at(c, w / 2, h / 2), e[c] / len, 1e-3) << c;
 }
 
 // With both normal passes, Cycles' Denoising Normal wins: it passes through mirrors and glass
@@ -351,13 +357,15 @@ TEST(ExrLoaderDenoisingData, DenoisingNormalStaysInCameraSpaceWithoutACamera) {
 // or the sky through a mirror), 0 on the background and where it names a surface; no camera
 // needed (KeepExact keeps such a view's 1-spp colour).
 TEST(ExrLoaderDenoisingData, LightThroughMirrorWhereDenoisingNormalIsZeroOnASurface) {
-    for (bool namesSurface : {false, true}) {
-        TempDir tmp(namesSurface ? "light-mirror-surface" : "light-mirror");
+    // 0: zero (a light through a mirror); 1: names a surface; 2: damaged (NaN), not a light.
+    for (int kind : {0, 1, 2}) {
+        const bool namesSurface = kind != 0;
+        TempDir tmp("light-mirror-" + std::to_string(kind));
         Channels ch;
         ch["ViewLayer.Normal.X"] = {0.f, 0.f};
         ch["ViewLayer.Normal.Y"] = {1.f, 0.f};  // pixel 1 is background
         ch["ViewLayer.Normal.Z"] = {0.f, 0.f};
-        const float dn = namesSurface ? 0.6f : 0.f;
+        const float dn = kind == 0 ? 0.f : kind == 1 ? 0.6f : std::nanf("");
         addGroup(ch, "Denoising Normal", "XYZ", {dn, 0.f, 0.f});
         auto h = loaderOn(tmp, ch);
         h.useOutputs({"lightThroughMirror"});
